@@ -1,0 +1,1 @@
+"""The dragline command and end-to-end pipelines."""
