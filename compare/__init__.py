@@ -1,1 +1,26 @@
-"""compare stage of dragline."""
+"""compare stage of dragline: measured-versus-simulated metrics and free-decay analysis."""
+
+from ._decay import dominant_mode, envelope_shape, free_decay, matrix_pencil
+from ._metrics import (
+    channel_metrics,
+    iso18571,
+    peak,
+    peak_error,
+    rms_error,
+    sprague_geers,
+    theil_u,
+)
+
+__all__ = [
+    "rms_error",
+    "peak_error",
+    "peak",
+    "sprague_geers",
+    "iso18571",
+    "theil_u",
+    "channel_metrics",
+    "matrix_pencil",
+    "dominant_mode",
+    "envelope_shape",
+    "free_decay",
+]

@@ -1,1 +1,21 @@
-"""reconstruct stage of dragline."""
+"""The reconstruction stage: from 2D centroids or 3D markers to body motion.
+
+Plain functions over arrays (time-first, SI units): triangulation, body
+frames and mass centres (paper Eqs. 10, 14-16), rope length (Eq. 22),
+derivatives and smoothing (section 3.3), and gap filling.
+"""
+
+from ._bench import bench_triangulation
+from ._bodies import body_frames_paper, body_frames_svd, body_origin, mass_centre, two_marker_position
+from ._gaps import fill_gaps, fill_rigid
+from ._rates import (
+    RunningAverage,
+    SavitzkyGolay,
+    Smoother,
+    body_rates,
+    finite_difference,
+    make_smoother,
+    running_average,
+)
+from ._ropes import rope_length_cubic
+from ._triangulate import triangulate, undistort_detections

@@ -1,0 +1,184 @@
+"""The simulated motion-capture lab: six cameras, the L-frame and the wand.
+
+Ground truth for synthetic captures. The layout is chosen for the built-in
+1/16-scale rig (inertial frame, K down, so heights are negative z):
+
+- the bucket works over x in [-5.5, -1.0], y in [-0.4, 0.4], z in [-1.6, 0];
+- the ropes run from the excavator base (x ~ 0, z ~ -1.5) and from the boom
+  pulley (x ~ -5.5, z ~ -4.0) down to the bucket.
+
+Six 1.2 MP cameras (1280 x 960 px) hang 2.5-3.5 m above the floor on the
+walls and in the corners of a lab about 9 m x 8 m, each aimed at a different
+part of the volume, so that every point of the bucket's work area is seen by
+at least three cameras, the rope spans by at least two, and no two optical
+axes are collinear (a camera looking straight at another sees its epipole in
+the middle of the image, which weakens the pair's relative pose).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from ._cameras import Camera
+
+__all__ = [
+    "IMAGE_SIZE",
+    "NOMINAL_FOCAL_PX",
+    "WAND_LENGTH",
+    "WAND_VOLUME",
+    "default_lab_cameras",
+    "lframe_points",
+    "wand_motion",
+]
+
+IMAGE_SIZE = (1280, 960)
+"""Sensor size (width, height) in px: 1.2 MP."""
+
+NOMINAL_FOCAL_PX = 850.0
+"""The lens spec's focal length in px (a 4.5 mm lens on 5.3 um pixels); the
+true focal length of each camera differs from it by a few percent."""
+
+WAND_LENGTH = 0.5
+"""Distance between the two wand markers (m)."""
+
+WAND_VOLUME = np.array([[-5.8, 0.3], [-0.75, 0.75], [-3.4, -0.05]])
+"""Box (m, rows x, y, z as [min, max]) the wand's markers are waved through."""
+
+# Camera centres (m) and the points they are aimed at (m). The aim points are
+# spread over the volume so that no two optical axes are collinear.
+_CENTRES = np.array([
+    [1.3, -3.3, -3.2],
+    [-2.9, -3.9, -2.6],
+    [-7.2, -2.9, -3.4],
+    [-7.0, 3.2, -2.9],
+    [-2.2, 3.9, -3.5],
+    [1.5, 2.9, -2.7],
+])
+_AIMS = np.array([
+    [-3.6, 0.1, -1.1],
+    [-2.9, 0.3, -1.5],
+    [-2.4, 0.0, -1.2],
+    [-2.6, -0.1, -1.5],
+    [-3.1, -0.2, -1.0],
+    [-3.3, 0.0, -1.6],
+])
+
+
+def _look_at(centre, aim):
+    """World-to-camera rotation for a camera at ``centre`` looking at ``aim``.
+
+    The image x axis stays horizontal and the image y axis (down in the
+    image) points down in the lab (+K).
+    """
+    z = aim - centre
+    z = z / np.linalg.norm(z)
+    x = np.cross([0.0, 0.0, 1.0], z)
+    x = x / np.linalg.norm(x)
+    y = np.cross(z, x)
+    return np.stack([x, y, z])
+
+
+def default_lab_cameras(seed=None):
+    """The six true cameras of the simulated lab.
+
+    Poses are the fixed layout above; the intrinsics are drawn from ``seed``
+    around the nominal lens: focal length within 3 % of
+    ``NOMINAL_FOCAL_PX`` (square pixels), principal point within about
+    10 px of the image centre, radial distortion ``k1`` in [-0.08, 0.05],
+    ``k2`` in [-0.02, 0.02], tangential ``p1, p2`` of order 1e-4, ``k3 = 0``.
+
+    Parameters
+    ----------
+    seed : int or None
+        Seed for the intrinsics. ``None`` gives the reference lab (the same
+        as ``seed=0``), so the default is reproducible.
+
+    Returns
+    -------
+    cameras : list of Camera
+        Named ``cam1`` ... ``cam6``; image size ``IMAGE_SIZE``.
+    """
+    rng = np.random.default_rng(0 if seed is None else seed)
+    width, height = IMAGE_SIZE
+    cameras = []
+    for i, (centre, aim) in enumerate(zip(_CENTRES, _AIMS)):
+        f = NOMINAL_FOCAL_PX * (1.0 + rng.uniform(-0.03, 0.03))
+        cx = (width - 1) / 2 + float(np.clip(rng.normal(0.0, 5.0), -10.0, 10.0))
+        cy = (height - 1) / 2 + float(np.clip(rng.normal(0.0, 5.0), -10.0, 10.0))
+        k1 = rng.uniform(-0.08, 0.05)
+        k2 = rng.uniform(-0.02, 0.02)
+        p1, p2 = np.clip(rng.normal(0.0, 2e-4, 2), -5e-4, 5e-4)
+        R = _look_at(centre, aim)
+        cameras.append(Camera(
+            name=f"cam{i + 1}",
+            image_size=IMAGE_SIZE,
+            K=[[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]],
+            dist=[k1, k2, p1, p2, 0.0],
+            rvec=cv2.Rodrigues(R)[0].ravel(),
+            tvec=-R @ centre,
+        ))
+    return cameras
+
+
+def lframe_points():
+    """Inertial positions (m) of the four L-frame markers, shape (4, 3).
+
+    The L-frame lies on the floor (z = 0) in the middle of the bucket's
+    work area, where every camera sees it: marker 0 is the corner, markers
+    1 and 2 lie on the long arm along +I (0.30 m and 0.70 m from the
+    corner, unequal so the arm's direction is unambiguous), marker 3 on the
+    short arm along +J (0.40 m). The markers define origin and axes; their
+    order is the order of the detections in the L-frame take.
+    """
+    corner = np.array([-3.0, -0.2, 0.0])
+    arms = np.array([[0.0, 0.0, 0.0], [0.30, 0.0, 0.0], [0.70, 0.0, 0.0], [0.0, 0.40, 0.0]])
+    return corner + arms
+
+
+def wand_motion(n_frames, rng, rate_hz=200.0, wand_length=WAND_LENGTH):
+    """A wand waved smoothly through the capture volume.
+
+    The wand's centre follows an incommensurate Lissajous path through
+    ``WAND_VOLUME`` (periods of a few seconds, like a person walking the
+    wand through the lab) with small smooth wobbles; its direction sweeps
+    all azimuths and elevations up to about 65 deg, so the calibration sees
+    every orientation. Markers never go below the floor.
+
+    Parameters
+    ----------
+    n_frames : int
+    rng : numpy.random.Generator
+        Source of the random phases and period jitter.
+    rate_hz : float
+        Frame rate (Hz); the motion is defined in seconds, so a lower rate
+        spreads fewer frames over the same path.
+    wand_length : float
+        Marker separation (m).
+
+    Returns
+    -------
+    markers : ndarray, shape (n_frames, 2, 3)
+        Inertial positions (m) of wand markers 0 and 1.
+    """
+    t = np.arange(int(n_frames)) / float(rate_hz)
+    half = wand_length / 2
+    lo, hi = WAND_VOLUME[:, 0], WAND_VOLUME[:, 1]
+    # The centre stays a half-wand inside the box so that both markers do.
+    c_lo = lo + np.array([half, half, half])
+    c_hi = hi - np.array([half, half, half])
+    mid, amp = (c_lo + c_hi) / 2, (c_hi - c_lo) / 2
+    periods = np.array([7.3, 2.9, 4.1]) * rng.uniform(0.9, 1.1, 3)
+    phases = rng.uniform(0.0, 2 * np.pi, 3)
+    wobble = 0.08 * np.sin(2 * np.pi * t[:, None] / np.array([0.83, 1.07, 0.71]) + rng.uniform(0, 2 * np.pi, 3))
+    centre = mid + amp * np.sin(2 * np.pi * t[:, None] / periods + phases) * 0.97 + wobble * amp.min()
+    centre = np.clip(centre, c_lo, c_hi)
+
+    azimuth = rng.uniform(0, 2 * np.pi) + 2 * np.pi * t / (2.3 * rng.uniform(0.9, 1.1))
+    elevation = 1.15 * np.sin(2 * np.pi * t / (1.7 * rng.uniform(0.9, 1.1)) + rng.uniform(0, 2 * np.pi))
+    direction = np.stack([
+        np.cos(elevation) * np.cos(azimuth),
+        np.cos(elevation) * np.sin(azimuth),
+        np.sin(elevation),
+    ], axis=-1)
+    return np.stack([centre - half * direction, centre + half * direction], axis=1)

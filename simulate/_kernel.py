@@ -1,0 +1,429 @@
+"""Compiled right-hand side and fixed-step RK4 integrator of the dragline model.
+
+Everything here works on the flat arrays that ``_model.assemble`` builds
+(packed into one tuple, ``m``, in the order of ``_model.KERNEL_FIELDS``).
+
+State vector layout (``_model.StateLayout``):
+  bodies    12 each: x y z, vx vy vz (inertial, m, m/s), roll pitch yaw (rad),
+            p q r (body-frame rates, rad/s)
+  particles 3 P positions, then 3 P velocities
+  elements  E standard-linear-solid forces (N), Eq. 8
+  rings     2 each: unstretched rope on side A (m), slide rate (m/s)
+
+Eq. 8 per element of rest length L_e, with Table 2's per-metre values read
+as those of a 1 m length (k = K / L_e, c = C / L_e):
+  F' = (Ks + Kv)/L_e (s' - L_e') + (Kv/Cv) (Ks/L_e (s - L_e) - F)   when taut
+  F = 0                                                             when slack
+``relax = Kv / Cv`` does not depend on L_e; relax = 0 switches dissipation
+off (a pure spring of stiffness Ks + Kv). The rest length moves when a reel
+pays out (L_e') or rope slides through a ring.
+
+A ring pulley holds rope on two sides, A (start to ring) and B (ring to end),
+each spread evenly over its elements. Its slide coordinate obeys
+  m_s v_s' = mean(T_A) - mean(T_B) + (mechanism terms),
+the generalised force conjugate to u_A; m_s is the effective mass of the
+rope moving through the ring, rho (L_A + L_B) / 3 (linear velocity profile
+from the ring to the fixed ends), plus any sheave inertia J / r^2.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+KIND_PARTICLE = 0
+KIND_BODY = 1
+KIND_FIXED = 2
+
+STATUS_OK = 0
+STATUS_NONFINITE = 1
+STATUS_RUNAWAY = 2
+
+
+@njit(cache=True, inline="always")
+def _body_matrix(roll, pitch, yaw, T, b):
+    """Eq. 11 into T[b] (indexing, not a view: views cost reference counting)."""
+    sf, cf = np.sin(roll), np.cos(roll)
+    st, ct = np.sin(pitch), np.cos(pitch)
+    ss, cs = np.sin(yaw), np.cos(yaw)
+    T[b, 0, 0] = cs * ct + ss * sf * st
+    T[b, 0, 1] = -ss * ct + cs * sf * st
+    T[b, 0, 2] = cf * st
+    T[b, 1, 0] = ss * cf
+    T[b, 1, 1] = cs * cf
+    T[b, 1, 2] = -sf
+    T[b, 2, 0] = -cs * st + ss * sf * ct
+    T[b, 2, 1] = ss * st + cs * sf * ct
+    T[b, 2, 2] = cf * ct
+
+
+@njit(cache=True)
+def _reel_lengths(t, reel_t, reel_len, out_len, out_rate):
+    """Linear interpolation of the reel table, held constant outside it."""
+    n = reel_t.shape[0]
+    if n == 1 or t <= reel_t[0]:
+        for j in range(reel_len.shape[1]):
+            out_len[j] = reel_len[0, j]
+            out_rate[j] = 0.0
+        return
+    if t >= reel_t[n - 1]:
+        for j in range(reel_len.shape[1]):
+            out_len[j] = reel_len[n - 1, j]
+            out_rate[j] = 0.0
+        return
+    k = np.searchsorted(reel_t, t, side="right") - 1
+    dt = reel_t[k + 1] - reel_t[k]
+    w = (t - reel_t[k]) / dt
+    for j in range(reel_len.shape[1]):
+        rate = (reel_len[k + 1, j] - reel_len[k, j]) / dt
+        out_len[j] = reel_len[k, j] + w * (reel_len[k + 1, j] - reel_len[k, j])
+        out_rate[j] = rate
+
+
+@njit(cache=True)
+def _segment_lengths(t, seg_len0, seg_reel, seg_reel_off, reel_t, reel_len, Lseg, dLseg, reel_buf, reel_rate_buf):
+    _reel_lengths(t, reel_t, reel_len, reel_buf, reel_rate_buf)
+    for s in range(seg_len0.shape[0]):
+        r = seg_reel[s]
+        if r < 0:
+            Lseg[s] = seg_len0[s]
+            dLseg[s] = 0.0
+        else:
+            Lseg[s] = reel_buf[r] - seg_reel_off[s]
+            dLseg[s] = reel_rate_buf[r]
+
+
+@njit(cache=True, inline="always")
+def _node(kind, idx, arms, e, y, T, fixed_pos, o_part, o_vel):
+    """Position, velocity and inertial lever arm of an element end (9 scalars).
+
+    ``arms[e]`` is the body-frame lever arm from the body's mass centre.
+    Scalars, not scratch arrays: writes through arrays defeat the compiler's
+    optimisation of this innermost function (13x slower when measured).
+    """
+    if kind == KIND_PARTICLE:
+        j = o_part + 3 * idx
+        v = o_vel + 3 * idx
+        return y[j], y[j + 1], y[j + 2], y[v], y[v + 1], y[v + 2], 0.0, 0.0, 0.0
+    if kind == KIND_BODY:
+        b = 12 * idx
+        p, q, rr = y[b + 9], y[b + 10], y[b + 11]
+        r0, r1, r2 = arms[e, 0], arms[e, 1], arms[e, 2]
+        # omega x r in body axes, then both to inertial
+        wx = q * r2 - rr * r1
+        wy = rr * r0 - p * r2
+        wz = p * r1 - q * r0
+        a0 = T[idx, 0, 0] * r0 + T[idx, 0, 1] * r1 + T[idx, 0, 2] * r2
+        a1 = T[idx, 1, 0] * r0 + T[idx, 1, 1] * r1 + T[idx, 1, 2] * r2
+        a2 = T[idx, 2, 0] * r0 + T[idx, 2, 1] * r1 + T[idx, 2, 2] * r2
+        v0 = y[b + 3] + T[idx, 0, 0] * wx + T[idx, 0, 1] * wy + T[idx, 0, 2] * wz
+        v1 = y[b + 4] + T[idx, 1, 0] * wx + T[idx, 1, 1] * wy + T[idx, 1, 2] * wz
+        v2 = y[b + 5] + T[idx, 2, 0] * wx + T[idx, 2, 1] * wy + T[idx, 2, 2] * wz
+        return y[b] + a0, y[b + 1] + a1, y[b + 2] + a2, v0, v1, v2, a0, a1, a2
+    return fixed_pos[idx, 0], fixed_pos[idx, 1], fixed_pos[idx, 2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
+def _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring):
+    """Rest length L_e (m) and its rate (m/s) of element e."""
+    s = el_seg[e]
+    side = el_side[e]
+    if side == 0:
+        n = seg_nel[s]
+        return Lseg[s] / n, dLseg[s] / n
+    rg = seg_ring[s]
+    uA = y[o_ring + 2 * rg]
+    vs = y[o_ring + 2 * rg + 1]
+    if side == 1:
+        n = seg_nelA[s]
+        return uA / n, vs / n
+    n = seg_nel[s] - seg_nelA[s]
+    return (Lseg[s] - uA) / n, (dLseg[s] - vs) / n
+
+
+@njit(cache=True)
+def rhs(t, y, dy, m, work):
+    """dy = f(t, y). ``work`` holds scratch arrays (see ``make_work``)."""
+    nb = m[0]
+    body_mass = m[1]
+    body_I = m[2]
+    body_Iinv = m[3]
+    g = m[4]
+    part_seg = m[5]
+    el_seg = m[6]
+    el_ka = m[8]
+    el_ia = m[9]
+    el_ra = m[10]
+    el_kb = m[11]
+    el_ib = m[12]
+    el_rb = m[13]
+    seg_ks = m[14]
+    seg_kv = m[15]
+    seg_relax = m[16]
+    seg_len0 = m[17]
+    seg_reel = m[18]
+    seg_reel_off = m[19]
+    seg_ring = m[20]
+    seg_nel = m[21]
+    seg_nelA = m[22]
+    seg_npart = m[23]
+    seg_rho = m[24]
+    ring_seg = m[25]
+    ring_added_mass = m[26]
+    reel_t = m[27]
+    reel_len = m[28]
+    fixed_pos = m[29]
+    relax_damping = m[30]
+    body_cda = m[31]
+    seg_cda = m[32]
+    air_density = m[33]
+
+    P = part_seg.shape[0]
+    E = el_seg.shape[0]
+    R = ring_seg.shape[0]
+    o_part = 12 * nb
+    o_vel = o_part + 3 * P
+    o_F = o_vel + 3 * P
+    o_ring = o_F + E
+
+    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB = work
+
+    for b in range(nb):
+        _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
+    _segment_lengths(t, seg_len0, seg_reel, seg_reel_off, reel_t, reel_len, Lseg, dLseg, reel_buf, reel_rate)
+    fb[:, :] = 0.0
+    mb[:, :] = 0.0
+    fp[:, :] = 0.0
+    sumA[:] = 0.0
+    sumB[:] = 0.0
+
+    el_side = m[7]
+    for e in range(E):
+        s = el_seg[e]
+        Le, dLe = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
+        xa, ya, za, uxa, uya, uza, a0, a1, a2 = _node(el_ka[e], el_ia[e], el_ra, e, y, T, fixed_pos, o_part, o_vel)
+        xb, yb, zb, uxb, uyb, uzb, b0, b1, b2 = _node(el_kb[e], el_ib[e], el_rb, e, y, T, fixed_pos, o_part, o_vel)
+        dx = xb - xa
+        dyy = yb - ya
+        dz = zb - za
+        length = np.sqrt(dx * dx + dyy * dyy + dz * dz)
+        F = y[o_F + e]
+        tension = 0.0
+        if length > Le:
+            inv = 1.0 / length
+            ux, uy, uz = dx * inv, dyy * inv, dz * inv
+            rate = ux * (uxb - uxa) + uy * (uyb - uya) + uz * (uzb - uza)
+            invL = 1.0 / Le
+            ks = seg_ks[s] * invL
+            dy[o_F + e] = (ks + seg_kv[s] * invL) * (rate - dLe) + seg_relax[s] * (ks * (length - Le) - F)
+            if F > 0.0:
+                tension = F
+        else:
+            dy[o_F + e] = 0.0  # slack: F is held at zero by ``project``
+            ux, uy, uz = 0.0, 0.0, 0.0
+        if el_side[e] == 1:
+            sumA[seg_ring[s]] += tension
+        elif el_side[e] == 2:
+            sumB[seg_ring[s]] += tension
+        if tension == 0.0:
+            continue
+        fx, fy, fz = tension * ux, tension * uy, tension * uz
+        ka = el_ka[e]
+        if ka == KIND_PARTICLE:
+            i = el_ia[e]
+            fp[i, 0] += fx
+            fp[i, 1] += fy
+            fp[i, 2] += fz
+        elif ka == KIND_BODY:
+            b = el_ia[e]
+            fb[b, 0] += fx
+            fb[b, 1] += fy
+            fb[b, 2] += fz
+            mb[b, 0] += a1 * fz - a2 * fy
+            mb[b, 1] += a2 * fx - a0 * fz
+            mb[b, 2] += a0 * fy - a1 * fx
+        kb = el_kb[e]
+        if kb == KIND_PARTICLE:
+            i = el_ib[e]
+            fp[i, 0] -= fx
+            fp[i, 1] -= fy
+            fp[i, 2] -= fz
+        elif kb == KIND_BODY:
+            b = el_ib[e]
+            fb[b, 0] -= fx
+            fb[b, 1] -= fy
+            fb[b, 2] -= fz
+            mb[b, 0] -= b1 * fz - b2 * fy
+            mb[b, 1] -= b2 * fx - b0 * fz
+            mb[b, 2] -= b0 * fy - b1 * fx
+
+    # particles: lumped mass from the segment's current unstretched length
+    for i in range(P):
+        s = part_seg[i]
+        mass = seg_rho[s] * Lseg[s] / seg_npart[s]
+        cda = seg_cda[s] * Lseg[s] / seg_npart[s]
+        vx = y[o_vel + 3 * i]
+        vy = y[o_vel + 3 * i + 1]
+        vz = y[o_vel + 3 * i + 2]
+        drag = 0.0
+        if cda > 0.0:
+            drag = 0.5 * air_density * cda * np.sqrt(vx * vx + vy * vy + vz * vz)
+        for k in range(3):
+            v = y[o_vel + 3 * i + k]
+            dy[o_part + 3 * i + k] = v
+            dy[o_vel + 3 * i + k] = (fp[i, k] - drag * v) / mass - relax_damping * v
+        dy[o_vel + 3 * i + 2] += g
+
+    for b in range(nb):
+        o = 12 * b
+        mass = body_mass[b]
+        vx, vy, vz = y[o + 3], y[o + 4], y[o + 5]
+        drag = 0.0
+        if body_cda[b] > 0.0:
+            drag = 0.5 * air_density * body_cda[b] * np.sqrt(vx * vx + vy * vy + vz * vz)
+        for k in range(3):
+            v = y[o + 3 + k]
+            dy[o + k] = v
+            dy[o + 3 + k] = (fb[b, k] - drag * v) / mass - relax_damping * v
+        dy[o + 5] += g
+        roll, yaw = y[o + 6], y[o + 8]
+        p, q, r = y[o + 9], y[o + 10], y[o + 11]
+        sf, cf = np.sin(roll), np.cos(roll)
+        ss, cs = np.sin(yaw), np.cos(yaw)
+        pitch_rate = (p * ss + q * cs) / cf  # Eq. 3
+        dy[o + 6] = p * cs - q * ss
+        dy[o + 7] = pitch_rate
+        dy[o + 8] = r + pitch_rate * sf
+        # moment to body axes, then Euler's equations with the full inertia
+        Mx = T[b, 0, 0] * mb[b, 0] + T[b, 1, 0] * mb[b, 1] + T[b, 2, 0] * mb[b, 2]
+        My = T[b, 0, 1] * mb[b, 0] + T[b, 1, 1] * mb[b, 1] + T[b, 2, 1] * mb[b, 2]
+        Mz = T[b, 0, 2] * mb[b, 0] + T[b, 1, 2] * mb[b, 1] + T[b, 2, 2] * mb[b, 2]
+        hx = body_I[b, 0, 0] * p + body_I[b, 0, 1] * q + body_I[b, 0, 2] * r
+        hy = body_I[b, 1, 0] * p + body_I[b, 1, 1] * q + body_I[b, 1, 2] * r
+        hz = body_I[b, 2, 0] * p + body_I[b, 2, 1] * q + body_I[b, 2, 2] * r
+        gx = Mx - (q * hz - r * hy)
+        gy = My - (r * hx - p * hz)
+        gz = Mz - (p * hy - q * hx)
+        dy[o + 9] = body_Iinv[b, 0, 0] * gx + body_Iinv[b, 0, 1] * gy + body_Iinv[b, 0, 2] * gz - relax_damping * p
+        dy[o + 10] = body_Iinv[b, 1, 0] * gx + body_Iinv[b, 1, 1] * gy + body_Iinv[b, 1, 2] * gz - relax_damping * q
+        dy[o + 11] = body_Iinv[b, 2, 0] * gx + body_Iinv[b, 2, 1] * gy + body_Iinv[b, 2, 2] * gz - relax_damping * r
+
+    for rg in range(R):
+        s = ring_seg[rg]
+        vs = y[o_ring + 2 * rg + 1]
+        mass = seg_rho[s] * Lseg[s] / 3.0 + ring_added_mass[rg]
+        meanA = sumA[rg] / seg_nelA[s]
+        meanB = sumB[rg] / (seg_nel[s] - seg_nelA[s])
+        dy[o_ring + 2 * rg] = vs
+        dy[o_ring + 2 * rg + 1] = (meanA - meanB) / mass - relax_damping * vs
+
+
+@njit(cache=True)
+def project(t, y, m, work):
+    """Enforce Eq. 8's slack branch: F = 0 where s <= L_e, and F >= 0."""
+    nb = m[0]
+    P = m[5].shape[0]
+    E = m[6].shape[0]
+    o_part = 12 * nb
+    o_vel = o_part + 3 * P
+    o_F = o_vel + 3 * P
+    o_ring = o_F + E
+    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB = work
+    for b in range(nb):
+        _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
+    _segment_lengths(t, m[17], m[18], m[19], m[27], m[28], Lseg, dLseg, reel_buf, reel_rate)
+    el_seg, el_side, el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m[6], m[7], m[8], m[9], m[10], m[11], m[12], m[13]
+    seg_ring, seg_nel, seg_nelA, fixed_pos = m[20], m[21], m[22], m[29]
+    for e in range(E):
+        if y[o_F + e] <= 0.0:
+            y[o_F + e] = 0.0
+            continue
+        Le, _ = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
+        xa, ya, za, _, _, _, _, _, _ = _node(el_ka[e], el_ia[e], el_ra, e, y, T, fixed_pos, o_part, o_vel)
+        xb, yb, zb, _, _, _, _, _, _ = _node(el_kb[e], el_ib[e], el_rb, e, y, T, fixed_pos, o_part, o_vel)
+        dx = xb - xa
+        dyy = yb - ya
+        dz = zb - za
+        if dx * dx + dyy * dyy + dz * dz <= Le * Le:
+            y[o_F + e] = 0.0
+
+
+def make_work(m):
+    """Scratch arrays for ``rhs`` and ``project`` (allocated once per run)."""
+    nb = m[0]
+    P = m[5].shape[0]
+    S = m[14].shape[0]
+    R = m[25].shape[0]
+    nreel = m[28].shape[1]
+    return (
+        np.zeros((nb, 3, 3)),
+        np.zeros(S),
+        np.zeros(S),
+        np.zeros(nreel),
+        np.zeros(nreel),
+        np.zeros((nb, 3)),
+        np.zeros((nb, 3)),
+        np.zeros((max(P, 1), 3)),
+        np.zeros(max(R, 1)),
+        np.zeros(max(R, 1)),
+    )
+
+
+@njit(cache=True)
+def integrate(y0, t0, dt, n_steps, record_every, m, work, max_speed):
+    """Fixed-step classical RK4 from ``t0``; records every ``record_every`` steps.
+
+    Returns
+    -------
+    records : ndarray (n_steps // record_every + 1, n_state)
+        State at t0 and after every ``record_every`` steps.
+    status : int
+        STATUS_OK, STATUS_NONFINITE or STATUS_RUNAWAY.
+    bad_step : int
+        Step at which the run stopped (status != OK), else -1.
+    bad_index : int
+        State index found bad first, else -1.
+    """
+    n = y0.shape[0]
+    n_rec = n_steps // record_every + 1
+    records = np.empty((n_rec, n))
+    y = y0.copy()
+    k1 = np.empty(n)
+    k2 = np.empty(n)
+    k3 = np.empty(n)
+    k4 = np.empty(n)
+    tmp = np.empty(n)
+    records[0] = y
+    nb = m[0]
+    P = m[5].shape[0]
+    o_vel = 12 * nb + 3 * P
+    half = 0.5 * dt
+    sixth = dt / 6.0
+    for step in range(n_steps):
+        t = t0 + step * dt
+        rhs(t, y, k1, m, work)
+        for i in range(n):
+            tmp[i] = y[i] + half * k1[i]
+        rhs(t + half, tmp, k2, m, work)
+        for i in range(n):
+            tmp[i] = y[i] + half * k2[i]
+        rhs(t + half, tmp, k3, m, work)
+        for i in range(n):
+            tmp[i] = y[i] + dt * k3[i]
+        rhs(t + dt, tmp, k4, m, work)
+        for i in range(n):
+            y[i] += sixth * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+        project(t + dt, y, m, work)
+        if (step + 1) % record_every == 0:
+            for i in range(n):
+                if not np.isfinite(y[i]):
+                    return records[: (step + 1) // record_every], STATUS_NONFINITE, step + 1, i
+            for i in range(nb):
+                for k in range(3):
+                    if abs(y[12 * i + 3 + k]) > max_speed:
+                        return records[: (step + 1) // record_every], STATUS_RUNAWAY, step + 1, 12 * i + 3 + k
+            for i in range(3 * P):
+                if abs(y[o_vel + i]) > max_speed:
+                    return records[: (step + 1) // record_every], STATUS_RUNAWAY, step + 1, o_vel + i
+            records[(step + 1) // record_every] = y
+    return records, STATUS_OK, -1, -1

@@ -1,0 +1,353 @@
+"""Assembly: a rig, a discretization and a maneuver become flat kernel arrays.
+
+Topology of one rope segment with ``n`` particles (seed paper section 2.2):
+``start - p1 - ... - pn - end``, n + 1 elements. A segment through a ring
+pulley is ``start - (A particles) - ring - (B particles) - end``: the ring
+splits one element, so it has n + 2 elements; the split of particles
+between the sides is fixed for a run (proportional to the sides' initial
+spans). A side between two fixed points (the hoist rope from its reel to the
+boom pulley) is one massless straight element: the fixed reel-to-boom path.
+
+Reels (DESIGN 4.5): the maneuver's reel table sets a reel rope's *total*
+unstretched length from the reel; for the hoist rope the boom pulley's ring
+state splits it between the fixed reel-to-boom path and the modelled span,
+so the span's length is the reel length minus the (stretching) fixed path.
+Particle masses are the segment's current unstretched length times its mass
+per length, shared evenly by its particles, so a reel paying out makes every
+particle of the span heavier at the same rate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._kernel import KIND_BODY, KIND_FIXED, KIND_PARTICLE
+from ._table import BODIES
+
+__all__ = ["Model", "assemble"]
+
+REELS = ("hoist", "drag")
+
+
+@dataclass
+class Model:
+    """The assembled model: kernel arrays plus the names needed to read them."""
+
+    rig: object
+    maneuver: object
+    counts: dict
+    body_names: tuple
+    seg_names: tuple
+    arrays: dict
+    seg_particles: dict  # segment -> slice into particles
+    seg_elements: dict  # segment -> slice into elements
+    seg_ring: dict  # segment -> ring index (rings only)
+    seg_nodes: dict  # segment -> list of (kind, idx, r_body) along the rope
+    physics: tuple = ()
+    notes: list = field(default_factory=list)
+
+    # ---- layout ---------------------------------------------------------
+    @property
+    def n_bodies(self):
+        return len(self.body_names)
+
+    @property
+    def n_particles(self):
+        return self.arrays["part_seg"].shape[0]
+
+    @property
+    def n_elements(self):
+        return self.arrays["el_seg"].shape[0]
+
+    @property
+    def n_rings(self):
+        return self.arrays["ring_seg"].shape[0]
+
+    @property
+    def o_part(self):
+        return 12 * self.n_bodies
+
+    @property
+    def o_vel(self):
+        return self.o_part + 3 * self.n_particles
+
+    @property
+    def o_force(self):
+        return self.o_vel + 3 * self.n_particles
+
+    @property
+    def o_ring(self):
+        return self.o_force + self.n_elements
+
+    @property
+    def n_state(self):
+        return self.o_ring + 2 * self.n_rings
+
+    def body_slice(self, name):
+        b = self.body_names.index(name)
+        return slice(12 * b, 12 * b + 12)
+
+    def kernel_tuple(self):
+        a = self.arrays
+        return tuple(a[k] for k in KERNEL_FIELDS)
+
+    def describe_state_index(self, i):
+        """Name the body, rope particle, element or ring a state index belongs to."""
+        if i < self.o_part:
+            return f"body {self.body_names[i // 12]}"
+        if i < self.o_force:
+            p = ((i - self.o_part) % (3 * self.n_particles)) // 3
+            return f"rope segment {self.seg_names[self.arrays['part_seg'][p]]}"
+        if i < self.o_ring:
+            return f"rope segment {self.seg_names[self.arrays['el_seg'][i - self.o_force]]}"
+        r = (i - self.o_ring) // 2
+        return f"ring pulley of {self.seg_names[self.arrays['ring_seg'][r]]}"
+
+    # ---- reading records --------------------------------------------------
+    def segment_lengths(self, t):
+        """Total unstretched length of every segment at times ``t`` (S, ...)."""
+        a = self.arrays
+        t = np.asarray(t, float)
+        out = np.empty((len(self.seg_names),) + t.shape)
+        for s in range(len(self.seg_names)):
+            r = a["seg_reel"][s]
+            if r < 0:
+                out[s] = a["seg_len0"][s]
+            else:
+                out[s] = np.interp(t, a["reel_t"], a["reel_len"][:, r]) - a["seg_reel_off"][s]
+        return out
+
+    def node_positions(self, states, segment):
+        """Positions of a segment's nodes along the rope for each record.
+
+        Parameters
+        ----------
+        states : ndarray, shape (N, n_state)
+        segment : str
+
+        Returns
+        -------
+        ndarray, shape (N, n_nodes, 3)
+            Start point, particles (with the ring point between the sides)
+            and end point, in order along the rope (m).
+        """
+        from ._kinematics import body_to_inertial
+
+        states = np.atleast_2d(states)
+        nodes = self.seg_nodes[segment]
+        out = np.empty((states.shape[0], len(nodes), 3))
+        fixed = self.arrays["fixed_pos"]
+        T_cache = {}
+        for j, (kind, idx, r) in enumerate(nodes):
+            if kind == KIND_PARTICLE:
+                out[:, j] = states[:, self.o_part + 3 * idx : self.o_part + 3 * idx + 3]
+            elif kind == KIND_FIXED:
+                out[:, j] = fixed[idx]
+            else:
+                if idx not in T_cache:
+                    o = 12 * idx
+                    T_cache[idx] = body_to_inertial(states[:, o + 6], states[:, o + 7], states[:, o + 8])
+                out[:, j] = states[:, 12 * idx : 12 * idx + 3] + T_cache[idx] @ r
+        return out
+
+
+KERNEL_FIELDS = (
+    "nb", "body_mass", "body_I", "body_Iinv", "g",
+    "part_seg", "el_seg", "el_side",
+    "el_ka", "el_ia", "el_ra", "el_kb", "el_ib", "el_rb",
+    "seg_ks", "seg_kv", "seg_relax", "seg_len0", "seg_reel", "seg_reel_off",
+    "seg_ring", "seg_nel", "seg_nelA", "seg_npart", "seg_rho",
+    "ring_seg", "ring_added_mass",
+    "reel_t", "reel_len", "fixed_pos", "relax_damping",
+    "body_cda", "seg_cda", "air_density",
+)  # fmt: skip
+
+
+def _resolve(ref, rig, fixed_names):
+    """``"body.point"`` -> (KIND_BODY, body index, lever arm from the mass centre)."""
+    owner, _, point = ref.partition(".")
+    if owner == "fixed":
+        return KIND_FIXED, fixed_names.index(point), np.zeros(3)
+    body = rig.bodies[owner]
+    return KIND_BODY, BODIES.index(owner), body.points[point] - body.cg_body
+
+
+def _ref_position(ref, rig, guess):
+    owner, _, point = ref.partition(".")
+    if owner == "fixed":
+        return rig.fixed_points[point]
+    return guess[owner] + rig.bodies[owner].points[point] - rig.bodies[owner].cg_body
+
+
+def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=True, side_split=None):
+    """Build the kernel arrays for a rig.
+
+    Parameters
+    ----------
+    rig : Rig
+    maneuver : Maneuver
+        Reel table (hoist, drag lengths).
+    discretization : str or dict
+        Level name or per-rope particle counts (``Rig.particle_counts``).
+    physics : sequence of Mechanism
+        Optional mechanisms; each adjusts the arrays (``_physics``).
+    dissipation : bool
+        False switches the visco-elastic relaxation off (pure springs of
+        stiffness Ks + Kv): the conservative model of the energy test.
+    side_split : dict, optional
+        Ring segment -> number of particles on side A. By default split in
+        proportion to the sides' spans in a rough hanging pose.
+
+    Returns
+    -------
+    Model
+    """
+    counts = rig.particle_counts(discretization)
+    fixed_names = list(rig.fixed_points)
+    seg_names = tuple(rig.ropes)
+    guess = rough_body_positions(rig, *maneuver.lengths_at(maneuver.time[0]))
+
+    part_seg, el = [], []
+    seg = {k: [] for k in ("ks", "kv", "relax", "len0", "reel", "reel_off", "ring", "nel", "nelA", "npart", "rho")}
+    ring_seg = []
+    seg_particles, seg_elements, seg_ring, seg_nodes = {}, {}, {}, {}
+    for s, name in enumerate(seg_names):
+        spec = rig.ropes[name]
+        n = counts[name]
+        start = _resolve(spec.start, rig, fixed_names)
+        end = _resolve(spec.end, rig, fixed_names)
+        p0, e0 = len(part_seg), len(el)
+        if spec.ring is None:
+            nA = n
+            chain = [start] + [(KIND_PARTICLE, p0 + i, np.zeros(3)) for i in range(n)] + [end]
+            sides = [0] * (n + 1)
+        else:
+            ring = _resolve(spec.ring, rig, fixed_names)
+            if start[0] == KIND_FIXED and ring[0] == KIND_FIXED:
+                nA = 0  # the fixed reel-to-pulley path: one straight massless element
+            elif side_split and name in side_split:
+                nA = int(side_split[name])
+            else:
+                dA = np.linalg.norm(_ref_position(spec.ring, rig, guess) - _ref_position(spec.start, rig, guess))
+                dB = np.linalg.norm(_ref_position(spec.end, rig, guess) - _ref_position(spec.ring, rig, guess))
+                nA = int(np.clip(round(n * dA / (dA + dB)), 1 if n > 1 else 0, n - 1 if n > 1 else n))
+            chain = (
+                [start]
+                + [(KIND_PARTICLE, p0 + i, np.zeros(3)) for i in range(nA)]
+                + [ring]
+                + [(KIND_PARTICLE, p0 + nA + i, np.zeros(3)) for i in range(n - nA)]
+                + [end]
+            )
+            sides = [1] * (nA + 1) + [2] * (n - nA + 1)
+            seg_ring[name] = len(ring_seg)
+            ring_seg.append(s)
+        part_seg += [s] * n
+        for (ka, ia, ra), (kb, ib, rb), side in zip(chain[:-1], chain[1:], sides):
+            el.append((s, side, ka, ia, ra, kb, ib, rb))
+        seg_particles[name] = slice(p0, p0 + n)
+        seg_elements[name] = slice(e0, len(el))
+        seg_nodes[name] = chain
+        rho = spec.weight_per_length / rig.g
+        seg["ks"].append(spec.static_stiffness)
+        seg["kv"].append(spec.viscous_stiffness)
+        seg["relax"].append(spec.viscous_stiffness / spec.viscous_damping if dissipation else 0.0)
+        seg["len0"].append(spec.length if spec.reel is None else 0.0)
+        seg["reel"].append(-1 if spec.reel is None else REELS.index(spec.reel))
+        seg["reel_off"].append(0.0)
+        seg["ring"].append(seg_ring.get(name, -1))
+        seg["nel"].append(len(sides))
+        seg["nelA"].append(nA + 1 if spec.ring else 0)
+        seg["npart"].append(max(n, 1))
+        seg["rho"].append(rho)
+
+    bodies = [rig.bodies[b] for b in BODIES]
+    I = np.array([b.inertia for b in bodies])
+    E = len(el)
+    arrays = {
+        "nb": len(bodies),
+        "body_mass": np.array([b.mass for b in bodies]),
+        "body_I": I,
+        "body_Iinv": np.linalg.inv(I),
+        "g": float(rig.g),
+        "part_seg": np.array(part_seg, np.int64),
+        "el_seg": np.array([e[0] for e in el], np.int64),
+        "el_side": np.array([e[1] for e in el], np.int64),
+        "el_ka": np.array([e[2] for e in el], np.int64),
+        "el_ia": np.array([e[3] for e in el], np.int64),
+        "el_ra": np.array([e[4] for e in el], float).reshape(E, 3),
+        "el_kb": np.array([e[5] for e in el], np.int64),
+        "el_ib": np.array([e[6] for e in el], np.int64),
+        "el_rb": np.array([e[7] for e in el], float).reshape(E, 3),
+        "seg_ks": np.array(seg["ks"]),
+        "seg_kv": np.array(seg["kv"]),
+        "seg_relax": np.array(seg["relax"]),
+        "seg_len0": np.array(seg["len0"]),
+        "seg_reel": np.array(seg["reel"], np.int64),
+        "seg_reel_off": np.array(seg["reel_off"]),
+        "seg_ring": np.array(seg["ring"], np.int64),
+        "seg_nel": np.array(seg["nel"], np.int64),
+        "seg_nelA": np.array(seg["nelA"], np.int64),
+        "seg_npart": np.array(seg["npart"], np.int64),
+        "seg_rho": np.array(seg["rho"]),
+        "ring_seg": np.array(ring_seg, np.int64),
+        "ring_added_mass": np.zeros(len(ring_seg)),
+        "reel_t": np.array(maneuver.time, float),
+        "reel_len": np.column_stack([maneuver.hoist_length, maneuver.drag_length]).astype(float),
+        "fixed_pos": np.array([rig.fixed_points[k] for k in fixed_names], float).reshape(-1, 3),
+        "relax_damping": 0.0,
+        "body_cda": np.zeros(len(bodies)),
+        "seg_cda": np.zeros(len(seg_names)),
+        "air_density": 1.2,
+    }
+    model = Model(
+        rig=rig,
+        maneuver=maneuver,
+        counts=counts,
+        body_names=BODIES,
+        seg_names=seg_names,
+        arrays=arrays,
+        seg_particles=seg_particles,
+        seg_elements=seg_elements,
+        seg_ring=seg_ring,
+        seg_nodes=seg_nodes,
+        physics=tuple(physics),
+    )
+    for mechanism in physics:
+        mechanism.apply(model)
+    return model
+
+
+def rough_body_positions(rig, hoist_length, drag_length):
+    """A rough hanging pose (mass-centre positions, m) to start the statics from.
+
+    The bucket and its rigging are treated as one rigid block hanging from
+    the hoist rope's span and, when it is taut, held back by the drag rope;
+    the block's place is found on the x-z plane by a two-rope balance.
+    """
+    from scipy.optimize import minimize
+
+    fp = rig.fixed_points
+    boom = fp.get("boom_pulley", np.array([0.0, 0.0, -4.0]))
+    reel_h = fp.get("hoist_reel", boom)
+    reel_d = fp.get("drag_reel", np.zeros(3))
+    span_h = hoist_length - np.linalg.norm(boom - reel_h)
+    # offsets of each body's mass centre from the bucket's (hanging, level)
+    offs = {
+        "bucket": np.zeros(3),
+        "spreader_bar": np.array([-0.05, 0.0, -0.27]),
+        "hoist_cluster": np.array([-0.05, 0.0, -0.55]),
+        "drag_cluster": np.array([0.75, 0.0, -0.05]),
+    }
+
+    def cost(xz):
+        p = np.array([xz[0], 0.0, xz[1]])
+        dh = np.linalg.norm(p + offs["hoist_cluster"] - boom) - 0.99 * span_h
+        dd = max(0.0, np.linalg.norm(p + offs["drag_cluster"] - reel_d) - 0.99 * drag_length)
+        return dh**2 + dd**2 + 1e-4 * (-p[2])
+
+    x0 = np.array([boom[0] + 0.3, boom[2] + span_h + 0.55])
+    res = minimize(cost, x0, method="Nelder-Mead", options={"xatol": 1e-6, "fatol": 1e-12, "maxiter": 4000})
+    p = np.array([res.x[0], 0.0, res.x[1]])
+    return {name: p + off for name, off in offs.items()}

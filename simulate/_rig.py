@@ -1,0 +1,249 @@
+"""The rig description: bodies, rope segments, fixed points, discretization.
+
+One TOML file holds a whole rig (``simulate/data/rig.toml`` is the built-in
+1/16-scale dragline). Body points are body-frame coordinates about the body
+reference point, like the paper's SL, BL, WL; Eq. 10 subtracts the mass
+centre ``cg_body`` from them.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from ._table import BODIES
+
+__all__ = ["BodySpec", "RopeSpec", "Rig", "load_rig", "DISCRETIZATION_LEVELS"]
+
+DISCRETIZATION_LEVELS = ("low", "baseline", "medium", "high")
+
+
+@dataclass(frozen=True)
+class BodySpec:
+    """A rigid body: mass (kg), mass centre and points (m, body frame), inertia (kg m^2)."""
+
+    name: str
+    mass: float
+    cg_body: np.ndarray
+    inertia: np.ndarray
+    size: np.ndarray
+    points: dict = field(default_factory=dict)
+    markers: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class RopeSpec:
+    """A rope segment (rope or chain) and its Table 2 properties.
+
+    Stiffness and damping are Table 2's "per metre" values read as those of a
+    1 m length: an element of rest length L has k = K * (1 m / L).
+
+    Attributes
+    ----------
+    start, end : str
+        ``"<body>.<point>"`` or ``"fixed.<point>"``.
+    ring : str or None
+        Ring pulley the rope passes through, same notation.
+    reel : str or None
+        ``"hoist"`` or ``"drag"`` when the maneuver's reel table sets the
+        rope's total unstretched length from ``start``.
+    length : float or None
+        Unstretched length (m) of a rope not on a reel.
+    weight_per_length : float
+        N/m.
+    static_stiffness, viscous_stiffness : float
+        Ks, Kv: N per unit strain (N/m for a 1 m length).
+    viscous_damping : float
+        Cv: N s per unit strain.
+    marker_distances : tuple of float
+        Rope markers, unstretched m of rope from the ``end``.
+    """
+
+    name: str
+    start: str
+    end: str
+    weight_per_length: float
+    static_stiffness: float
+    viscous_stiffness: float
+    viscous_damping: float
+    ring: str | None = None
+    reel: str | None = None
+    length: float | None = None
+    marker_distances: tuple = ()
+
+
+@dataclass(frozen=True)
+class Rig:
+    """A whole rig. ``bodies`` follow DESIGN's order; ``ropes`` the file's."""
+
+    name: str
+    g: float
+    bodies: dict
+    ropes: dict
+    fixed_points: dict
+    discretization: dict
+    source: str = ""
+
+    def particle_counts(self, discretization="baseline"):
+        """Particles per rope segment.
+
+        Parameters
+        ----------
+        discretization : str or dict
+            A level name (low, baseline, medium, high) or a mapping from rope
+            name to particle count; ropes not named keep the baseline count.
+            ``drag_chain``, ``lower_hoist_chain`` and ``upper_hoist_chain``
+            name both sides at once.
+
+        Returns
+        -------
+        dict
+            Rope name -> particle count (>= 1).
+        """
+        counts = dict(self.discretization["baseline"])
+        if isinstance(discretization, str):
+            if discretization not in self.discretization:
+                raise ValueError(
+                    f"unknown discretization {discretization!r} "
+                    f"(choose one of {', '.join(self.discretization)})"
+                )
+            counts = dict(self.discretization[discretization])
+        else:
+            for name, n in dict(discretization).items():
+                targets = [r for r in self.ropes if r in (name, f"left_{name}", f"right_{name}")]
+                if not targets:
+                    raise ValueError(f"unknown rope {name!r} in discretization")
+                if int(n) != n or n < 1:
+                    raise ValueError(f"particle count for {name!r} must be a positive integer, got {n}")
+                for t in targets:
+                    counts[t] = int(n)
+        return counts
+
+
+def _vec(value, what, n=3):
+    arr = np.asarray(value, float)
+    if arr.shape != (n,) or not np.isfinite(arr).all():
+        raise ValueError(f"{what}: expected {n} finite numbers, got {value!r}")
+    return arr
+
+
+def _expand_levels(table, rope_names):
+    order = table["order"]
+    levels = {}
+    for level in DISCRETIZATION_LEVELS:
+        if level not in table:
+            raise ValueError(f"discretization level {level!r} missing")
+        row = dict(zip(order, table[level]))
+        counts = {}
+        for rope in rope_names:
+            key = rope
+            for side in ("left_", "right_"):
+                if rope.startswith(side):
+                    key = rope[len(side):]
+            if key not in row:
+                raise ValueError(f"discretization has no count for rope {rope!r}")
+            counts[rope] = int(row[key])
+        levels[level] = counts
+    return levels
+
+
+def load_rig(path=None):
+    """Load a rig TOML file (the built-in rig when ``path`` is None).
+
+    Raises
+    ------
+    ValueError
+        On a missing body, an unknown point name, or malformed numbers.
+    """
+    if path is None:
+        text = resources.files("dragline.simulate").joinpath("data/rig.toml").read_text()
+        source = "built-in rig"
+    else:
+        try:
+            text = Path(path).read_text()
+        except OSError as exc:
+            raise ValueError(f"cannot read rig file {path}: {exc.strerror}") from None
+        source = str(path)
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{source}: not valid TOML ({exc})") from None
+    try:
+        return _rig_from_doc(doc, source)
+    except KeyError as exc:
+        raise ValueError(f"{source}: missing key {exc}") from None
+
+
+def _rig_from_doc(doc, source):
+    bodies = {}
+    for name in BODIES:
+        if name not in doc["bodies"]:
+            raise ValueError(f"{source}: body {name!r} missing")
+        b = doc["bodies"][name]
+        inertia = np.diag(_vec(b["inertia_diag"], f"{name}.inertia_diag"))
+        if "inertia_offdiag" in b:  # Ixy, Ixz, Iyz (products of inertia, kg m^2)
+            ixy, ixz, iyz = _vec(b["inertia_offdiag"], f"{name}.inertia_offdiag")
+            inertia[0, 1] = inertia[1, 0] = -ixy
+            inertia[0, 2] = inertia[2, 0] = -ixz
+            inertia[1, 2] = inertia[2, 1] = -iyz
+        if b["mass"] <= 0 or np.any(np.linalg.eigvalsh(inertia) <= 0):
+            raise ValueError(f"{source}: body {name!r} needs positive mass and inertia")
+        bodies[name] = BodySpec(
+            name=name,
+            mass=float(b["mass"]),
+            cg_body=_vec(b["cg_body"], f"{name}.cg_body"),
+            inertia=inertia,
+            size=_vec(b.get("size", [0.05, 0.05, 0.05]), f"{name}.size"),
+            points={k: _vec(v, f"{name}.points.{k}") for k, v in b.get("points", {}).items()},
+            markers={k: _vec(v, f"{name}.markers.{k}") for k, v in b.get("markers", {}).items()},
+        )
+    fixed = {k: _vec(v, f"fixed_points.{k}") for k, v in doc.get("fixed_points", {}).items()}
+    ropes = {}
+    for name, r in doc["ropes"].items():
+        spec = RopeSpec(
+            name=name,
+            start=r["start"],
+            end=r["end"],
+            ring=r.get("ring"),
+            reel=r.get("reel"),
+            length=r.get("length"),
+            weight_per_length=float(r["weight_per_length"]),
+            static_stiffness=float(r["static_stiffness"]),
+            viscous_stiffness=float(r["viscous_stiffness"]),
+            viscous_damping=float(r["viscous_damping"]),
+            marker_distances=tuple(float(d) for d in r.get("marker_distances", ())),
+        )
+        for ref in (spec.start, spec.end) + ((spec.ring,) if spec.ring else ()):
+            _check_ref(ref, bodies, fixed, f"{source}: rope {name!r}")
+        if spec.reel not in (None, "hoist", "drag"):
+            raise ValueError(f"{source}: rope {name!r}: reel must be 'hoist' or 'drag'")
+        if spec.reel is None and not (spec.length and spec.length > 0):
+            raise ValueError(f"{source}: rope {name!r} needs a positive length or a reel")
+        if min(spec.static_stiffness, spec.viscous_stiffness, spec.viscous_damping) <= 0:
+            raise ValueError(f"{source}: rope {name!r} needs positive stiffness and damping")
+        ropes[name] = spec
+    return Rig(
+        name=doc.get("name", source),
+        g=float(doc.get("g", 9.81)),
+        bodies=bodies,
+        ropes=ropes,
+        fixed_points=fixed,
+        discretization=_expand_levels(doc["discretization"], list(ropes)),
+        source=source,
+    )
+
+
+def _check_ref(ref, bodies, fixed, where):
+    owner, _, point = ref.partition(".")
+    if owner == "fixed":
+        if point not in fixed:
+            raise ValueError(f"{where}: unknown fixed point {point!r}")
+    elif owner in bodies:
+        if point not in bodies[owner].points:
+            raise ValueError(f"{where}: body {owner!r} has no point {point!r}")
+    else:
+        raise ValueError(f"{where}: unknown end {ref!r}")

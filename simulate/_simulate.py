@@ -1,0 +1,249 @@
+"""Running the model: from equilibrium through a maneuver to a trajectory table."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from . import _kernel
+from ._kinematics import body_to_inertial
+from ._maneuver import dig_maneuver
+from ._model import assemble
+from ._rig import load_rig
+from ._statics import solve_statics, stable_time_step
+from ._table import BODIES, trajectory_columns
+
+__all__ = ["SimulationError", "SimulationResult", "simulate"]
+
+
+class SimulationError(RuntimeError):
+    """The integration blew up (non-finite state or runaway speed)."""
+
+
+@dataclass
+class SimulationResult:
+    """What a run produced.
+
+    Attributes
+    ----------
+    time : ndarray (N,)
+        Record times (s).
+    states : ndarray (N, n_state)
+        Full state at each record.
+    model : Model
+    dt : float
+        Integration step (s).
+    equilibrium_residual : float
+        Largest static imbalance of the starting pose (N or N m).
+    """
+
+    time: np.ndarray
+    states: np.ndarray
+    model: object
+    dt: float
+    equilibrium_residual: float
+
+    @property
+    def table(self):
+        """The trajectory table (DESIGN 3), plus tension and reel columns."""
+        return trajectory_table(self.model, self.time, self.states)
+
+    def rope_nodes(self, segment):
+        """Node positions along a rope segment, (N, n_nodes, 3) in m."""
+        return self.model.node_positions(self.states, segment)
+
+    def rope_points(self, segment, distances):
+        """Material points of a rope: positions at unstretched distances from its end.
+
+        The rope between nodes is taken as straight and uniformly stretched
+        within each element.
+
+        Parameters
+        ----------
+        segment : str
+        distances : array_like (M,)
+            Unstretched distance from the rope's ``end`` (m).
+
+        Returns
+        -------
+        ndarray (N, M, 3)
+            NaN where the distance is beyond the rope's current length.
+        """
+        nodes = self.rope_nodes(segment)[:, ::-1]  # from the end backwards
+        rest = element_rest_lengths(self.model, self.time, self.states, segment)[:, ::-1]
+        cum = np.concatenate([np.zeros((rest.shape[0], 1)), np.cumsum(rest, axis=1)], axis=1)
+        d = np.asarray(distances, float)
+        out = np.full((nodes.shape[0], d.size, 3), np.nan)
+        for i in range(nodes.shape[0]):
+            j = np.searchsorted(cum[i], d, side="right") - 1
+            ok = (j >= 0) & (j < rest.shape[1])
+            jj = j[ok]
+            w = (d[ok] - cum[i, jj]) / rest[i, jj]
+            out[i, ok] = nodes[i, jj] * (1 - w)[:, None] + nodes[i, jj + 1] * w[:, None]
+        return out
+
+    def energy(self):
+        """Mechanical energy (J) per record: kinetic, elastic and gravity.
+
+        Elastic energy is F^2 / (2 k) with k = (Ks + Kv) / L_e, the stored
+        energy of the dissipation-free model (``dissipation=False``).
+        """
+        return mechanical_energy(self.model, self.time, self.states)
+
+
+def element_rest_lengths(model, time, states, segment):
+    """Rest length (m) of each element of a segment, (N, n_elements)."""
+    a = model.arrays
+    s = model.seg_names.index(segment)
+    L = model.segment_lengths(time)[s]
+    sl = model.seg_elements[segment]
+    side = a["el_side"][sl]
+    out = np.empty((len(time), sl.stop - sl.start))
+    if segment in model.seg_ring:
+        uA = states[:, model.o_ring + 2 * model.seg_ring[segment]]
+        nA = a["seg_nelA"][s]
+        nB = a["seg_nel"][s] - nA
+        out[:, side == 1] = (uA / nA)[:, None]
+        out[:, side == 2] = ((L - uA) / nB)[:, None]
+    else:
+        out[:] = (L / a["seg_nel"][s])[:, None]
+    return out
+
+
+def trajectory_table(model, time, states):
+    """Trajectory table of a run (columns of DESIGN 3 first, then extras)."""
+    cols = {"time": time}
+    for b, name in enumerate(BODIES):
+        o = 12 * b
+        for k, q in enumerate(("x", "y", "z")):
+            cols[f"{name}.{q}"] = states[:, o + k]
+        for k, q in enumerate(("roll", "pitch", "yaw")):
+            cols[f"{name}.{q}"] = states[:, o + 6 + k]
+        for k, q in enumerate(("vx", "vy", "vz")):
+            cols[f"{name}.{q}"] = states[:, o + 3 + k]
+        for k, q in enumerate(("p", "q", "r")):
+            cols[f"{name}.{q}"] = states[:, o + 9 + k]
+    for rope in ("hoist_rope", "drag_rope"):
+        if rope in model.seg_names:
+            nodes = model.node_positions(states, rope)
+            cols[f"{rope}.length"] = np.linalg.norm(np.diff(nodes, axis=1), axis=2).sum(axis=1)
+    frame = pd.DataFrame(cols, columns=[c for c in trajectory_columns() if c in cols])
+    h, d = model.maneuver.lengths_at(time)
+    extras = {"hoist_rope.reel_length": h, "drag_rope.reel_length": d}
+    F = np.maximum(states[:, model.o_force : model.o_ring], 0.0)
+    for seg in model.seg_names:
+        sl = model.seg_elements[seg]
+        extras[f"{seg}.tension_start"] = F[:, sl.start]
+        extras[f"{seg}.tension_end"] = F[:, sl.stop - 1]
+    return pd.concat([frame, pd.DataFrame(extras)], axis=1)
+
+
+def mechanical_energy(model, time, states):
+    a = model.arrays
+    g = a["g"]
+    E = np.zeros(len(time))
+    for b in range(model.n_bodies):
+        o = 12 * b
+        m = a["body_mass"][b]
+        v = states[:, o + 3 : o + 6]
+        w = states[:, o + 9 : o + 12]
+        E += 0.5 * m * (v**2).sum(1) + 0.5 * np.einsum("ni,ij,nj->n", w, a["body_I"][b], w)
+        E -= m * g * states[:, o + 2]
+    L = model.segment_lengths(time)
+    P = model.n_particles
+    for p in range(P):
+        s = a["part_seg"][p]
+        m = a["seg_rho"][s] * L[s] / a["seg_npart"][s]
+        v = states[:, model.o_vel + 3 * p : model.o_vel + 3 * p + 3]
+        E += 0.5 * m * (v**2).sum(1) - m * g * states[:, model.o_part + 3 * p + 2]
+    for r in range(model.n_rings):
+        s = a["ring_seg"][r]
+        ms = a["seg_rho"][s] * L[s] / 3.0 + a["ring_added_mass"][r]
+        E += 0.5 * ms * states[:, model.o_ring + 2 * r + 1] ** 2
+    for seg in model.seg_names:
+        s = model.seg_names.index(seg)
+        rest = element_rest_lengths(model, time, states, seg)
+        F = np.maximum(states[:, model.o_force : model.o_ring][:, model.seg_elements[seg]], 0.0)
+        k = (a["seg_ks"][s] + a["seg_kv"][s]) / rest
+        E += (F**2 / (2 * k)).sum(1)
+    return E
+
+
+def simulate(
+    rig=None,
+    maneuver=None,
+    discretization="baseline",
+    physics=(),
+    duration=10.0,
+    rate_hz=200.0,
+    dt=None,
+    dissipation=True,
+    initial_state=None,
+    max_speed=100.0,
+):
+    """Simulate a maneuver from static equilibrium.
+
+    Parameters
+    ----------
+    rig : Rig, optional
+        The built-in 1/16-scale rig by default.
+    maneuver : Maneuver, optional
+        The paper's dig maneuver by default.
+    discretization : str or dict
+        low, baseline, medium, high, or per-rope particle counts.
+    physics : sequence of Mechanism
+        Optional mechanisms (``parse_physics``).
+    duration : float
+        Simulated time from the maneuver's start (s).
+    rate_hz : float
+        Output rate (Hz); the step divides the output interval.
+    dt : float, optional
+        Integration step (s); by default the largest stable RK4 step.
+    dissipation : bool
+        False: visco-elastic relaxation off (energy-conserving model).
+    initial_state : ndarray, optional
+        Start here instead of at the static equilibrium.
+    max_speed : float
+        Any speed above this (m/s) is a blow-up.
+
+    Returns
+    -------
+    SimulationResult
+
+    Raises
+    ------
+    SimulationError
+        On a blow-up, naming the time and the segment or body.
+    """
+    rig = load_rig() if rig is None else rig
+    maneuver = dig_maneuver() if maneuver is None else maneuver
+    if not duration > 0:
+        raise ValueError(f"duration must be positive, got {duration}")
+    if not rate_hz > 0:
+        raise ValueError(f"output rate must be positive, got {rate_hz}")
+    model = assemble(rig, maneuver, discretization, physics=physics, dissipation=dissipation)
+    t0 = float(maneuver.time[0])
+    if initial_state is None:
+        eq = solve_statics(model, t0)
+        y0, residual = eq.state, eq.residual
+    else:
+        y0, residual = np.array(initial_state, float), float("nan")
+    out_dt = 1.0 / rate_hz
+    step = stable_time_step(model) if dt is None else float(dt)
+    per_record = max(1, int(np.ceil(out_dt / step - 1e-9)))
+    step = out_dt / per_record
+    n_records = int(round(duration * rate_hz))
+    m = model.kernel_tuple()
+    work = _kernel.make_work(m)
+    records, status, bad_step, bad_index = _kernel.integrate(
+        y0, t0, step, n_records * per_record, per_record, m, work, max_speed
+    )
+    if status != _kernel.STATUS_OK:
+        what = "a non-finite value" if status == _kernel.STATUS_NONFINITE else f"a speed above {max_speed:g} m/s"
+        raise SimulationError(
+            f"simulation blew up at t = {t0 + bad_step * step:.4f} s: {what} in {model.describe_state_index(bad_index)}"
+        )
+    time = t0 + np.arange(records.shape[0]) * out_dt
+    return SimulationResult(time=time, states=records, model=model, dt=step, equilibrium_residual=residual)

@@ -1,0 +1,259 @@
+"""Static equilibrium: the pose the rig rests in at given rope lengths.
+
+Two stages, as Costello and Kyle (2004) did it and then some:
+1. dynamic relaxation: the full model with the reels frozen and heavy
+   velocity damping added, from a rough hanging pose, until it is nearly
+   at rest;
+2. a Newton-type polish (``scipy.optimize.least_squares``) of the static
+   balance itself: net force on every particle and body, net moment on every
+   body, and tension balance across every ring pulley, with each element's
+   force at its static value (Ks times stretch; Eq. 8's steady state).
+The result is a state with zero velocities and steady element forces, from
+which ``simulate`` starts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+from scipy.optimize import least_squares
+
+from . import _kernel
+from ._kernel import KIND_PARTICLE, _element_rest, _node, _segment_lengths, _body_matrix
+from ._model import rough_body_positions
+
+__all__ = ["Equilibrium", "solve_statics"]
+
+
+@dataclass(frozen=True)
+class Equilibrium:
+    """A static pose.
+
+    Attributes
+    ----------
+    state : ndarray
+        Full state vector (velocities zero, forces static).
+    residual : float
+        Largest force or moment imbalance left (N or N m).
+    """
+
+    state: np.ndarray
+    residual: float
+
+
+@njit(cache=True)
+def static_forces(t, y, m, work):
+    """Set every element force to its static value k_static * max(s - L_e, 0)."""
+    nb = m[0]
+    P = m[5].shape[0]
+    E = m[6].shape[0]
+    o_part = 12 * nb
+    o_vel = o_part + 3 * P
+    o_F = o_vel + 3 * P
+    o_ring = o_F + E
+    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB = work
+    for b in range(nb):
+        _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
+    _segment_lengths(t, m[17], m[18], m[19], m[27], m[28], Lseg, dLseg, reel_buf, reel_rate)
+    for e in range(E):
+        s = m[6][e]
+        Le, _ = _element_rest(e, y, m[6], m[7], m[20], m[21], m[22], Lseg, dLseg, o_ring)
+        xa, ya, za, _, _, _, _, _, _ = _node(m[8][e], m[9][e], m[10], e, y, T, m[29], o_part, o_vel)
+        xb, yb, zb, _, _, _, _, _, _ = _node(m[11][e], m[12][e], m[13], e, y, T, m[29], o_part, o_vel)
+        d = np.sqrt((xb - xa) ** 2 + (yb - ya) ** 2 + (zb - za) ** 2)
+        k = m[14][s] if m[16][s] > 0.0 else m[14][s] + m[15][s]
+        y[o_F + e] = k / Le * (d - Le) if d > Le else 0.0
+
+
+def _frozen(model, t):
+    """Kernel tuple with the reels held at their lengths at time t."""
+    a = dict(model.arrays)
+    h, d = model.maneuver.lengths_at(t)
+    a["reel_t"] = np.array([0.0])
+    a["reel_len"] = np.array([[float(h), float(d)]])
+    from ._model import KERNEL_FIELDS
+
+    return a, KERNEL_FIELDS
+
+
+def initial_state(model, t=0.0, pitch_guess=0.0):
+    """A rough pose: bodies hanging in line, ropes straight or sagging."""
+    a = model.arrays
+    h, d = model.maneuver.lengths_at(t)
+    pos = rough_body_positions(model.rig, float(h), float(d))
+    y = np.zeros(model.n_state)
+    for b, name in enumerate(model.body_names):
+        y[12 * b : 12 * b + 3] = pos[name]
+        if name == "bucket":
+            y[12 * b + 7] = pitch_guess
+    Lseg = model.segment_lengths(t)
+    for s, name in enumerate(model.seg_names):
+        nodes = model.seg_nodes[name]
+        xyz = model.node_positions(y, name)[0]
+        # fill particles between their anchors (non-particle nodes)
+        anchors = [j for j, n in enumerate(nodes) if n[0] != KIND_PARTICLE]
+        spans = []
+        for j0, j1 in zip(anchors[:-1], anchors[1:]):
+            spans.append(np.linalg.norm(xyz[j1] - xyz[j0]))
+        total = sum(spans)
+        for (j0, j1), span in zip(zip(anchors[:-1], anchors[1:]), spans):
+            n_el = j1 - j0
+            rest = Lseg[s] * span / total
+            sag = np.sqrt(max(0.0, 3.0 * span * (rest - span) / 8.0))
+            for k in range(1, n_el):
+                w = k / n_el
+                p = (1 - w) * xyz[j0] + w * xyz[j1]
+                p[2] += 4.0 * sag * w * (1 - w)
+                idx = nodes[j0 + k][1]
+                y[model.o_part + 3 * idx : model.o_part + 3 * idx + 3] = p
+        if name in model.seg_ring:
+            r = model.seg_ring[name]
+            y[model.o_ring + 2 * r] = Lseg[s] * spans[0] / total
+    return y
+
+
+def _unknown_index(model):
+    idx = []
+    for b in range(model.n_bodies):
+        idx += [12 * b + k for k in (0, 1, 2, 6, 7, 8)]
+    idx += list(range(model.o_part, model.o_vel))
+    idx += [model.o_ring + 2 * r for r in range(model.n_rings)]
+    return np.array(idx)
+
+
+def solve_statics(model, t=0.0, y0=None, relax_time=12.0, damping=4.0, tol=1e-7):
+    """Equilibrium pose at the reel lengths of time ``t``.
+
+    Parameters
+    ----------
+    model : Model
+    t : float
+        Time whose reel lengths are used (s).
+    y0 : ndarray, optional
+        Starting state (a rough hanging pose by default).
+    relax_time : float
+        Simulated seconds of damped relaxation before the polish.
+    damping : float
+        Velocity damping rate of the relaxation (1/s).
+    tol : float
+        Target for the largest force imbalance (N) of the polish.
+
+    Returns
+    -------
+    Equilibrium
+
+    Raises
+    ------
+    RuntimeError
+        When no equilibrium is found (the rig cannot hang at these lengths).
+    """
+    arrays, fields = _frozen(model, t)
+    arrays["relax_damping"] = float(damping)
+    m = tuple(arrays[k] for k in fields)
+    work = _kernel.make_work(m)
+    y = initial_state(model, t) if y0 is None else np.array(y0, float)
+    dt = stable_time_step(model)
+    n_steps = int(np.ceil(relax_time / dt))
+    rec, status, _, _ = _kernel.integrate(y, 0.0, dt, n_steps, n_steps, m, work, 1e3)
+    if status != _kernel.STATUS_OK:
+        raise RuntimeError("statics: relaxation diverged")
+    y = rec[-1].copy()
+
+    arrays["relax_damping"] = 0.0
+    m = tuple(arrays[k] for k in fields)
+    unknown = _unknown_index(model)
+    scale = _residual_scale(model)
+    dy = np.zeros(model.n_state)
+
+    def residual(q):
+        yy = y.copy()
+        yy[unknown] = q
+        for b in range(model.n_bodies):
+            yy[12 * b + 3 : 12 * b + 6] = 0.0
+            yy[12 * b + 9 : 12 * b + 12] = 0.0
+        yy[model.o_vel : model.o_force] = 0.0
+        for r in range(model.n_rings):
+            yy[model.o_ring + 2 * r + 1] = 0.0
+        static_forces(0.0, yy, m, work)
+        _kernel.rhs(0.0, yy, dy, m, work)
+        return dy[_accel_index(model)] * scale
+
+    sol = least_squares(residual, y[unknown], method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=200 * len(unknown))
+    yy = y.copy()
+    yy[unknown] = sol.x
+    for b in range(model.n_bodies):
+        yy[12 * b + 3 : 12 * b + 6] = 0.0
+        yy[12 * b + 9 : 12 * b + 12] = 0.0
+    yy[model.o_vel : model.o_force] = 0.0
+    for r in range(model.n_rings):
+        yy[model.o_ring + 2 * r + 1] = 0.0
+    static_forces(0.0, yy, m, work)
+    worst = float(np.max(np.abs(residual(sol.x))))
+    if not np.isfinite(worst) or worst > 1e-3:
+        raise RuntimeError(f"statics: no equilibrium found (largest imbalance {worst:.3g} N)")
+    return Equilibrium(state=yy, residual=worst)
+
+
+def _accel_index(model):
+    idx = []
+    for b in range(model.n_bodies):
+        idx += [12 * b + k for k in (3, 4, 5, 9, 10, 11)]
+    idx += list(range(model.o_vel, model.o_force))
+    idx += [model.o_ring + 2 * r + 1 for r in range(model.n_rings)]
+    return np.array(idx)
+
+
+def _residual_scale(model):
+    """Accelerations -> forces (N) and moments (N m): multiply by the mass or inertia."""
+    a = model.arrays
+    scale = []
+    for b in range(model.n_bodies):
+        scale += [a["body_mass"][b]] * 3 + list(np.diag(a["body_I"][b]))
+    L = model.segment_lengths(0.0)
+    for p in range(model.n_particles):
+        s = a["part_seg"][p]
+        scale += [a["seg_rho"][s] * L[s] / a["seg_npart"][s]] * 3
+    for r in range(model.n_rings):
+        s = a["ring_seg"][r]
+        scale.append(a["seg_rho"][s] * L[s] / 3.0 + a["ring_added_mass"][r])
+    return np.array(scale)
+
+
+def stable_time_step(model, safety=0.9):
+    """Largest RK4 step (s) that keeps every axial mode stable.
+
+    A Gershgorin bound on the highest eigenvalue of M^-1 K, row by row:
+    particles and body translation (2 sum k / m) and body rotation about each
+    body axis i (2 sum k (|r|^2 - r_i^2) / I_ii), with the instantaneous
+    stiffness Ks + Kv at the shortest element lengths the maneuver reaches
+    (ring sides at three quarters of an even share), against RK4's stability
+    limit of 2 sqrt(2) on the imaginary axis.
+    """
+    a = model.arrays
+    Lmin = model.segment_lengths(a["reel_t"]).min(axis=1)
+    k_el = np.empty(model.n_elements)
+    for e in range(model.n_elements):
+        s = a["el_seg"][e]
+        Le = Lmin[s] / a["seg_nel"][s] * (0.75 if a["el_side"][e] else 1.0)
+        k_el[e] = (a["seg_ks"][s] + a["seg_kv"][s]) / Le
+    k_part = np.zeros(model.n_particles)
+    k_body = np.zeros(model.n_bodies)
+    k_rot = np.zeros((model.n_bodies, 3))
+    for e in range(model.n_elements):
+        for kind, idx, r in ((a["el_ka"][e], a["el_ia"][e], a["el_ra"][e]), (a["el_kb"][e], a["el_ib"][e], a["el_rb"][e])):
+            if kind == KIND_PARTICLE:
+                k_part[idx] += k_el[e]
+            elif kind == _kernel.KIND_BODY:
+                k_body[idx] += k_el[e]
+                k_rot[idx] += k_el[e] * (r @ r - r**2)
+    seg = a["part_seg"]
+    m_part = a["seg_rho"][seg] * Lmin[seg] / a["seg_npart"][seg]
+    I_axes = np.array([np.diag(I) for I in a["body_I"]])
+    lam = max(
+        np.max(2.0 * k_part / m_part, initial=0.0),
+        np.max(2.0 * k_body / a["body_mass"]),
+        np.max(2.0 * k_rot / I_axes),
+    )
+    return safety * 2.0 * np.sqrt(2.0) / np.sqrt(lam)
