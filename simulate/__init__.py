@@ -1,4 +1,8 @@
-"""The dragline simulator: the seed paper's lumped-mass dynamic model."""
+"""The dragline simulator: the seed paper's lumped-mass dynamic model.
+
+``simulate()`` runs a maneuver from static equilibrium and returns a
+``SimulationResult`` whose ``table`` is the trajectory table of DESIGN 3.
+"""
 
 from ._kinematics import (
     body_rates_from_euler_rates,
@@ -6,4 +10,10 @@ from ._kinematics import (
     euler_from_matrix,
     euler_rates_from_body_rates,
 )
-from ._table import BODIES, BODY_QUANTITIES, ROPE_CHANNELS, trajectory_columns
+from ._maneuver import Maneuver, dig_maneuver, read_maneuver_csv, write_maneuver_csv
+from ._model import Model, assemble
+from ._physics import MECHANISMS, Mechanism, mechanism_names, parse_physics
+from ._rig import DISCRETIZATION_LEVELS, Rig, load_rig, rig_from_dict
+from ._simulate import SimulationError, SimulationResult, simulate
+from ._statics import Equilibrium, solve_statics, stable_time_step
+from ._table import BODIES, BODY_QUANTITIES, ROPE_CHANNELS, trajectory_columns, write_trajectory_csv

@@ -12,16 +12,18 @@ State vector layout (``_model.StateLayout``):
 
 Eq. 8 per element of rest length L_e, with Table 2's per-metre values read
 as those of a 1 m length (k = K / L_e, c = C / L_e):
-  F' = (Ks + Kv)/L_e (s' - L_e') + (Kv/Cv) (Ks/L_e (s - L_e) - F)   when taut
+  F' = (Ks + Kv)/L_e (s' - s L_e'/L_e) + (Kv/Cv) (Ks/L_e (s - L_e) - F)   taut
   F = 0                                                             when slack
 ``relax = Kv / Cv`` does not depend on L_e; relax = 0 switches dissipation
 off (a pure spring of stiffness Ks + Kv). The rest length moves when a reel
-pays out (L_e') or rope slides through a ring.
+pays out or rope slides through a ring; the rate term is the rate of strain
+(s/L_e)' times K, so that the spring branch stays exactly K (s/L_e - 1).
 
 A ring pulley holds rope on two sides, A (start to ring) and B (ring to end),
 each spread evenly over its elements. Its slide coordinate obeys
   m_s v_s' = mean(T_A) - mean(T_B) + (mechanism terms),
-the generalised force conjugate to u_A; m_s is the effective mass of the
+where each side's mean is of T + T^2 / (2 K), K = Ks + Kv: the generalised
+force -dE/du_A of the elastic energy sum F^2 L_e / (2 K); m_s is the effective mass of the
 rope moving through the ring, rho (L_A + L_B) / 3 (linear velocity profile
 from the ring to the fixed ends), plus any sheave inertia J / r^2.
 """
@@ -81,6 +83,28 @@ def _reel_lengths(t, reel_t, reel_len, out_len, out_rate):
 
 
 @njit(cache=True)
+def _fixed_points(t, point_t, point_pos, fpos, fvel):
+    """Fixed points' positions and velocities at t (linear in time, held outside)."""
+    n = point_t.shape[0]
+    if n == 1 or t <= point_t[0] or t >= point_t[n - 1]:
+        k = 0 if (n == 1 or t <= point_t[0]) else n - 1
+        for i in range(point_pos.shape[1]):
+            for j in range(3):
+                fpos[i, j] = point_pos[k, i, j]
+                fvel[i, j] = 0.0
+        return
+    k = np.searchsorted(point_t, t, side="right") - 1
+    dt = point_t[k + 1] - point_t[k]
+    w = (t - point_t[k]) / dt
+    for i in range(point_pos.shape[1]):
+        for j in range(3):
+            a = point_pos[k, i, j]
+            b = point_pos[k + 1, i, j]
+            fpos[i, j] = a + w * (b - a)
+            fvel[i, j] = (b - a) / dt
+
+
+@njit(cache=True)
 def _segment_lengths(t, seg_len0, seg_reel, seg_reel_off, reel_t, reel_len, Lseg, dLseg, reel_buf, reel_rate_buf):
     _reel_lengths(t, reel_t, reel_len, reel_buf, reel_rate_buf)
     for s in range(seg_len0.shape[0]):
@@ -94,7 +118,7 @@ def _segment_lengths(t, seg_len0, seg_reel, seg_reel_off, reel_t, reel_len, Lseg
 
 
 @njit(cache=True, inline="always")
-def _node(kind, idx, arms, e, y, T, fixed_pos, o_part, o_vel):
+def _node(kind, idx, arms, e, y, T, fpos, fvel, o_part, o_vel):
     """Position, velocity and inertial lever arm of an element end (9 scalars).
 
     ``arms[e]`` is the body-frame lever arm from the body's mass centre.
@@ -120,7 +144,7 @@ def _node(kind, idx, arms, e, y, T, fixed_pos, o_part, o_vel):
         v1 = y[b + 4] + T[idx, 1, 0] * wx + T[idx, 1, 1] * wy + T[idx, 1, 2] * wz
         v2 = y[b + 5] + T[idx, 2, 0] * wx + T[idx, 2, 1] * wy + T[idx, 2, 2] * wz
         return y[b] + a0, y[b + 1] + a1, y[b + 2] + a2, v0, v1, v2, a0, a1, a2
-    return fixed_pos[idx, 0], fixed_pos[idx, 1], fixed_pos[idx, 2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    return fpos[idx, 0], fpos[idx, 1], fpos[idx, 2], fvel[idx, 0], fvel[idx, 1], fvel[idx, 2], 0.0, 0.0, 0.0
 
 
 @njit(cache=True, inline="always")
@@ -172,7 +196,7 @@ def rhs(t, y, dy, m, work):
     ring_added_mass = m[26]
     reel_t = m[27]
     reel_len = m[28]
-    fixed_pos = m[29]
+    point_pos = m[29]
     relax_damping = m[30]
     body_cda = m[31]
     seg_cda = m[32]
@@ -186,8 +210,9 @@ def rhs(t, y, dy, m, work):
     o_F = o_vel + 3 * P
     o_ring = o_F + E
 
-    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB = work
+    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel = work
 
+    _fixed_points(t, reel_t, point_pos, fpos, fvel)
     for b in range(nb):
         _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
     _segment_lengths(t, seg_len0, seg_reel, seg_reel_off, reel_t, reel_len, Lseg, dLseg, reel_buf, reel_rate)
@@ -201,8 +226,8 @@ def rhs(t, y, dy, m, work):
     for e in range(E):
         s = el_seg[e]
         Le, dLe = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
-        xa, ya, za, uxa, uya, uza, a0, a1, a2 = _node(el_ka[e], el_ia[e], el_ra, e, y, T, fixed_pos, o_part, o_vel)
-        xb, yb, zb, uxb, uyb, uzb, b0, b1, b2 = _node(el_kb[e], el_ib[e], el_rb, e, y, T, fixed_pos, o_part, o_vel)
+        xa, ya, za, uxa, uya, uza, a0, a1, a2 = _node(el_ka[e], el_ia[e], el_ra, e, y, T, fpos, fvel, o_part, o_vel)
+        xb, yb, zb, uxb, uyb, uzb, b0, b1, b2 = _node(el_kb[e], el_ib[e], el_rb, e, y, T, fpos, fvel, o_part, o_vel)
         dx = xb - xa
         dyy = yb - ya
         dz = zb - za
@@ -215,16 +240,16 @@ def rhs(t, y, dy, m, work):
             rate = ux * (uxb - uxa) + uy * (uyb - uya) + uz * (uzb - uza)
             invL = 1.0 / Le
             ks = seg_ks[s] * invL
-            dy[o_F + e] = (ks + seg_kv[s] * invL) * (rate - dLe) + seg_relax[s] * (ks * (length - Le) - F)
+            dy[o_F + e] = (ks + seg_kv[s] * invL) * (rate - length * dLe * invL) + seg_relax[s] * (ks * (length - Le) - F)
             if F > 0.0:
                 tension = F
         else:
             dy[o_F + e] = 0.0  # slack: F is held at zero by ``project``
             ux, uy, uz = 0.0, 0.0, 0.0
         if el_side[e] == 1:
-            sumA[seg_ring[s]] += tension
+            sumA[seg_ring[s]] += tension + tension * tension / (2.0 * (seg_ks[s] + seg_kv[s]))
         elif el_side[e] == 2:
-            sumB[seg_ring[s]] += tension
+            sumB[seg_ring[s]] += tension + tension * tension / (2.0 * (seg_ks[s] + seg_kv[s]))
         if tension == 0.0:
             continue
         fx, fy, fz = tension * ux, tension * uy, tension * uz
@@ -328,19 +353,20 @@ def project(t, y, m, work):
     o_vel = o_part + 3 * P
     o_F = o_vel + 3 * P
     o_ring = o_F + E
-    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB = work
+    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel = work
+    _fixed_points(t, m[27], m[29], fpos, fvel)
     for b in range(nb):
         _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
     _segment_lengths(t, m[17], m[18], m[19], m[27], m[28], Lseg, dLseg, reel_buf, reel_rate)
     el_seg, el_side, el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m[6], m[7], m[8], m[9], m[10], m[11], m[12], m[13]
-    seg_ring, seg_nel, seg_nelA, fixed_pos = m[20], m[21], m[22], m[29]
+    seg_ring, seg_nel, seg_nelA = m[20], m[21], m[22]
     for e in range(E):
         if y[o_F + e] <= 0.0:
             y[o_F + e] = 0.0
             continue
         Le, _ = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
-        xa, ya, za, _, _, _, _, _, _ = _node(el_ka[e], el_ia[e], el_ra, e, y, T, fixed_pos, o_part, o_vel)
-        xb, yb, zb, _, _, _, _, _, _ = _node(el_kb[e], el_ib[e], el_rb, e, y, T, fixed_pos, o_part, o_vel)
+        xa, ya, za, _, _, _, _, _, _ = _node(el_ka[e], el_ia[e], el_ra, e, y, T, fpos, fvel, o_part, o_vel)
+        xb, yb, zb, _, _, _, _, _, _ = _node(el_kb[e], el_ib[e], el_rb, e, y, T, fpos, fvel, o_part, o_vel)
         dx = xb - xa
         dyy = yb - ya
         dz = zb - za
@@ -366,6 +392,8 @@ def make_work(m):
         np.zeros((max(P, 1), 3)),
         np.zeros(max(R, 1)),
         np.zeros(max(R, 1)),
+        np.zeros((max(m[29].shape[1], 1), 3)),
+        np.zeros((max(m[29].shape[1], 1), 3)),
     )
 
 

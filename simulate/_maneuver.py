@@ -2,12 +2,14 @@
 
 A maneuver is a table (``time``, ``hoist_length``, ``drag_length``; s, m, m),
 linearly interpolated (seed paper section 2.3) and held at its last row
-after it ends. Users supply one as a CSV file with those three columns.
+after it ends. Users supply one as a CSV file with those three columns, and
+optionally ``<point>.x, <point>.y, <point>.z`` columns (m) that move one of
+the rig's fixed points (the boom pulley, a reel) through the maneuver.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -30,6 +32,7 @@ class Maneuver:
     time: np.ndarray
     hoist_length: np.ndarray
     drag_length: np.ndarray
+    points: dict = field(default_factory=dict)
 
     def __post_init__(self):
         cols = {}
@@ -52,6 +55,14 @@ class Maneuver:
         for name in ("hoist_length", "drag_length"):
             if np.any(cols[name] <= 0):
                 raise ValueError(f"maneuver {name} must be positive (row {int(np.argmax(cols[name] <= 0)) + 1})")
+        points = {}
+        for name, xyz in dict(self.points).items():
+            arr = np.array(xyz, float)
+            if arr.shape != (n, 3) or not np.isfinite(arr).all():
+                raise ValueError(f"maneuver point {name!r} needs finite x, y, z on every row")
+            arr.setflags(write=False)
+            points[name] = arr
+        object.__setattr__(self, "points", points)
 
     @property
     def end_time(self):
@@ -64,7 +75,11 @@ class Maneuver:
         return (np.interp(t, self.time, self.hoist_length), np.interp(t, self.time, self.drag_length))
 
     def to_frame(self):
-        return pd.DataFrame({"time": self.time, "hoist_length": self.hoist_length, "drag_length": self.drag_length})
+        cols = {"time": self.time, "hoist_length": self.hoist_length, "drag_length": self.drag_length}
+        for name, xyz in self.points.items():
+            for k, axis in enumerate("xyz"):
+                cols[f"{name}.{axis}"] = xyz[:, k]
+        return pd.DataFrame(cols)
 
 
 def dig_maneuver():
@@ -104,12 +119,17 @@ def read_maneuver_csv(path):
     missing = [c for c in ("time", "hoist_length", "drag_length") if c not in frame.columns]
     if missing:
         raise ValueError(f"maneuver file {path} lacks column(s) {', '.join(missing)}")
+    point_names = sorted({c.rsplit(".", 1)[0] for c in frame.columns if c.endswith((".x", ".y", ".z"))})
+    for name in point_names:
+        if not all(f"{name}.{a}" in frame.columns for a in "xyz"):
+            raise ValueError(f"maneuver file {path}: point {name!r} needs .x, .y and .z columns")
     try:
-        cols = {c: pd.to_numeric(frame[c], errors="raise").to_numpy(float) for c in ("time", "hoist_length", "drag_length")}
+        num = {c: pd.to_numeric(frame[c], errors="raise").to_numpy(float) for c in frame.columns}
     except (ValueError, TypeError):
         raise ValueError(f"maneuver file {path} has non-numeric values") from None
+    points = {name: np.column_stack([num[f"{name}.{a}"] for a in "xyz"]) for name in point_names}
     try:
-        return Maneuver(**cols)
+        return Maneuver(num["time"], num["hoist_length"], num["drag_length"], points)
     except ValueError as exc:
         raise ValueError(f"maneuver file {path}: {exc}") from None
 

@@ -24,7 +24,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._kernel import KIND_BODY, KIND_FIXED, KIND_PARTICLE
-from ._table import BODIES
 
 __all__ = ["Model", "assemble"]
 
@@ -119,13 +118,25 @@ class Model:
                 out[s] = np.interp(t, a["reel_t"], a["reel_len"][:, r]) - a["seg_reel_off"][s]
         return out
 
-    def node_positions(self, states, segment):
+    def fixed_positions(self, time):
+        """Fixed points' positions at times ``time`` (s), shape (N, F, 3) in m."""
+        a = self.arrays
+        t = np.atleast_1d(np.asarray(time, float))
+        out = np.empty((t.size, a["point_pos"].shape[1], 3))
+        for i in range(out.shape[1]):
+            for k in range(3):
+                out[:, i, k] = np.interp(t, a["reel_t"], a["point_pos"][:, i, k])
+        return out
+
+    def node_positions(self, states, segment, time=None):
         """Positions of a segment's nodes along the rope for each record.
 
         Parameters
         ----------
         states : ndarray, shape (N, n_state)
         segment : str
+        time : ndarray, shape (N,), optional
+            Record times (s); needed only when fixed points move (default 0).
 
         Returns
         -------
@@ -138,13 +149,13 @@ class Model:
         states = np.atleast_2d(states)
         nodes = self.seg_nodes[segment]
         out = np.empty((states.shape[0], len(nodes), 3))
-        fixed = self.arrays["fixed_pos"]
+        fixed = self.fixed_positions(np.zeros(states.shape[0]) if time is None else time)
         T_cache = {}
         for j, (kind, idx, r) in enumerate(nodes):
             if kind == KIND_PARTICLE:
                 out[:, j] = states[:, self.o_part + 3 * idx : self.o_part + 3 * idx + 3]
             elif kind == KIND_FIXED:
-                out[:, j] = fixed[idx]
+                out[:, j] = fixed[:, idx]
             else:
                 if idx not in T_cache:
                     o = 12 * idx
@@ -160,9 +171,20 @@ KERNEL_FIELDS = (
     "seg_ks", "seg_kv", "seg_relax", "seg_len0", "seg_reel", "seg_reel_off",
     "seg_ring", "seg_nel", "seg_nelA", "seg_npart", "seg_rho",
     "ring_seg", "ring_added_mass",
-    "reel_t", "reel_len", "fixed_pos", "relax_damping",
+    "reel_t", "reel_len", "point_pos", "relax_damping",
     "body_cda", "seg_cda", "air_density",
 )  # fmt: skip
+
+
+def _point_table(rig, maneuver, fixed_names):
+    """Positions of the fixed points at the maneuver's times, (K, F, 3)."""
+    table = np.empty((maneuver.time.size, len(fixed_names), 3))
+    for i, name in enumerate(fixed_names):
+        table[:, i] = maneuver.points.get(name, rig.fixed_points[name])
+    unknown = set(maneuver.points) - set(fixed_names)
+    if unknown:
+        raise ValueError(f"maneuver moves {sorted(unknown)[0]!r}, which is not a fixed point of the rig")
+    return table
 
 
 def _resolve(ref, rig, fixed_names):
@@ -171,7 +193,7 @@ def _resolve(ref, rig, fixed_names):
     if owner == "fixed":
         return KIND_FIXED, fixed_names.index(point), np.zeros(3)
     body = rig.bodies[owner]
-    return KIND_BODY, BODIES.index(owner), body.points[point] - body.cg_body
+    return KIND_BODY, list(rig.bodies).index(owner), body.points[point] - body.cg_body
 
 
 def _ref_position(ref, rig, guess):
@@ -262,7 +284,7 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         seg["npart"].append(max(n, 1))
         seg["rho"].append(rho)
 
-    bodies = [rig.bodies[b] for b in BODIES]
+    bodies = list(rig.bodies.values())
     I = np.array([b.inertia for b in bodies])
     E = len(el)
     arrays = {
@@ -295,7 +317,7 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         "ring_added_mass": np.zeros(len(ring_seg)),
         "reel_t": np.array(maneuver.time, float),
         "reel_len": np.column_stack([maneuver.hoist_length, maneuver.drag_length]).astype(float),
-        "fixed_pos": np.array([rig.fixed_points[k] for k in fixed_names], float).reshape(-1, 3),
+        "point_pos": _point_table(rig, maneuver, fixed_names),
         "relax_damping": 0.0,
         "body_cda": np.zeros(len(bodies)),
         "seg_cda": np.zeros(len(seg_names)),
@@ -305,7 +327,7 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         rig=rig,
         maneuver=maneuver,
         counts=counts,
-        body_names=BODIES,
+        body_names=tuple(rig.bodies),
         seg_names=seg_names,
         arrays=arrays,
         seg_particles=seg_particles,
@@ -329,7 +351,9 @@ def rough_body_positions(rig, hoist_length, drag_length):
     from scipy.optimize import minimize
 
     fp = rig.fixed_points
-    boom = fp.get("boom_pulley", np.array([0.0, 0.0, -4.0]))
+    if "boom_pulley" not in fp:  # not a dragline: bodies start at their given positions
+        return {name: (np.zeros(3) if b.position is None else b.position) for name, b in rig.bodies.items()}
+    boom = fp["boom_pulley"]
     reel_h = fp.get("hoist_reel", boom)
     reel_d = fp.get("drag_reel", np.zeros(3))
     span_h = hoist_length - np.linalg.norm(boom - reel_h)
@@ -350,4 +374,4 @@ def rough_body_positions(rig, hoist_length, drag_length):
     x0 = np.array([boom[0] + 0.3, boom[2] + span_h + 0.55])
     res = minimize(cost, x0, method="Nelder-Mead", options={"xatol": 1e-6, "fatol": 1e-12, "maxiter": 4000})
     p = np.array([res.x[0], 0.0, res.x[1]])
-    return {name: p + off for name, off in offs.items()}
+    return {name: p + off for name, off in offs.items() if name in rig.bodies}

@@ -17,7 +17,7 @@ import numpy as np
 
 from ._table import BODIES
 
-__all__ = ["BodySpec", "RopeSpec", "Rig", "load_rig", "DISCRETIZATION_LEVELS"]
+__all__ = ["BodySpec", "RopeSpec", "Rig", "load_rig", "rig_from_dict", "DISCRETIZATION_LEVELS"]
 
 DISCRETIZATION_LEVELS = ("low", "baseline", "medium", "high")
 
@@ -33,6 +33,7 @@ class BodySpec:
     size: np.ndarray
     points: dict = field(default_factory=dict)
     markers: dict = field(default_factory=dict)
+    position: np.ndarray | None = None  # starting guess for the statics (rigs other than the dragline)
 
 
 @dataclass(frozen=True)
@@ -61,6 +62,8 @@ class RopeSpec:
         Cv: N s per unit strain.
     marker_distances : tuple of float
         Rope markers, unstretched m of rope from the ``end``.
+    diameter : float
+        Projected width per unit length (m), for air drag.
     """
 
     name: str
@@ -74,11 +77,12 @@ class RopeSpec:
     reel: str | None = None
     length: float | None = None
     marker_distances: tuple = ()
+    diameter: float = 0.01
 
 
 @dataclass(frozen=True)
 class Rig:
-    """A whole rig. ``bodies`` follow DESIGN's order; ``ropes`` the file's."""
+    """A whole rig. ``bodies`` follow DESIGN's order (then any others); ``ropes`` the file's."""
 
     name: str
     g: float
@@ -151,6 +155,14 @@ def _expand_levels(table, rope_names):
     return levels
 
 
+def rig_from_dict(doc, source="rig"):
+    """Build a rig from a parsed TOML document (a dict of the file's layout)."""
+    try:
+        return _rig_from_doc(doc, source)
+    except KeyError as exc:
+        raise ValueError(f"{source}: missing key {exc}") from None
+
+
 def load_rig(path=None):
     """Load a rig TOML file (the built-in rig when ``path`` is None).
 
@@ -172,17 +184,18 @@ def load_rig(path=None):
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{source}: not valid TOML ({exc})") from None
-    try:
-        return _rig_from_doc(doc, source)
-    except KeyError as exc:
-        raise ValueError(f"{source}: missing key {exc}") from None
+    rig = rig_from_dict(doc, source)
+    missing = [b for b in BODIES if b not in rig.bodies]
+    if missing:
+        raise ValueError(f"{source}: a dragline rig needs body {missing[0]!r}")
+    return rig
 
 
 def _rig_from_doc(doc, source):
     bodies = {}
-    for name in BODIES:
-        if name not in doc["bodies"]:
-            raise ValueError(f"{source}: body {name!r} missing")
+    # the dragline's bodies first, in DESIGN's order; other rigs may name their own
+    names = [b for b in BODIES if b in doc["bodies"]] + [b for b in doc["bodies"] if b not in BODIES]
+    for name in names:
         b = doc["bodies"][name]
         inertia = np.diag(_vec(b["inertia_diag"], f"{name}.inertia_diag"))
         if "inertia_offdiag" in b:  # Ixy, Ixz, Iyz (products of inertia, kg m^2)
@@ -200,6 +213,7 @@ def _rig_from_doc(doc, source):
             size=_vec(b.get("size", [0.05, 0.05, 0.05]), f"{name}.size"),
             points={k: _vec(v, f"{name}.points.{k}") for k, v in b.get("points", {}).items()},
             markers={k: _vec(v, f"{name}.markers.{k}") for k, v in b.get("markers", {}).items()},
+            position=_vec(b["position"], f"{name}.position") if "position" in b else None,
         )
     fixed = {k: _vec(v, f"fixed_points.{k}") for k, v in doc.get("fixed_points", {}).items()}
     ropes = {}
@@ -216,6 +230,7 @@ def _rig_from_doc(doc, source):
             viscous_stiffness=float(r["viscous_stiffness"]),
             viscous_damping=float(r["viscous_damping"]),
             marker_distances=tuple(float(d) for d in r.get("marker_distances", ())),
+            diameter=float(r.get("diameter", 0.01)),
         )
         for ref in (spec.start, spec.end) + ((spec.ring,) if spec.ring else ()):
             _check_ref(ref, bodies, fixed, f"{source}: rope {name!r}")
@@ -232,9 +247,15 @@ def _rig_from_doc(doc, source):
         bodies=bodies,
         ropes=ropes,
         fixed_points=fixed,
-        discretization=_expand_levels(doc["discretization"], list(ropes)),
+        discretization=_expand_levels(doc["discretization"], list(ropes)) if "discretization" in doc else _single_level(ropes, doc),
         source=source,
     )
+
+
+def _single_level(ropes, doc):
+    """Rigs without a Table 3: every level uses each rope's own ``particles``."""
+    counts = {name: int(doc["ropes"][name].get("particles", 1)) for name in ropes}
+    return {level: dict(counts) for level in DISCRETIZATION_LEVELS}
 
 
 def _check_ref(ref, bodies, fixed, where):

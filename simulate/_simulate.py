@@ -13,7 +13,7 @@ from ._maneuver import dig_maneuver
 from ._model import assemble
 from ._rig import load_rig
 from ._statics import solve_statics, stable_time_step
-from ._table import BODIES, trajectory_columns
+from ._table import trajectory_columns
 
 __all__ = ["SimulationError", "SimulationResult", "simulate"]
 
@@ -52,7 +52,7 @@ class SimulationResult:
 
     def rope_nodes(self, segment):
         """Node positions along a rope segment, (N, n_nodes, 3) in m."""
-        return self.model.node_positions(self.states, segment)
+        return self.model.node_positions(self.states, segment, self.time)
 
     def rope_points(self, segment, distances):
         """Material points of a rope: positions at unstretched distances from its end.
@@ -115,7 +115,7 @@ def element_rest_lengths(model, time, states, segment):
 def trajectory_table(model, time, states):
     """Trajectory table of a run (columns of DESIGN 3 first, then extras)."""
     cols = {"time": time}
-    for b, name in enumerate(BODIES):
+    for b, name in enumerate(model.body_names):
         o = 12 * b
         for k, q in enumerate(("x", "y", "z")):
             cols[f"{name}.{q}"] = states[:, o + k]
@@ -127,9 +127,10 @@ def trajectory_table(model, time, states):
             cols[f"{name}.{q}"] = states[:, o + 9 + k]
     for rope in ("hoist_rope", "drag_rope"):
         if rope in model.seg_names:
-            nodes = model.node_positions(states, rope)
+            nodes = model.node_positions(states, rope, time)
             cols[f"{rope}.length"] = np.linalg.norm(np.diff(nodes, axis=1), axis=2).sum(axis=1)
-    frame = pd.DataFrame(cols, columns=[c for c in trajectory_columns() if c in cols])
+    order = [c for c in trajectory_columns() if c in cols] + [c for c in cols if c not in trajectory_columns()]
+    frame = pd.DataFrame(cols, columns=order)
     h, d = model.maneuver.lengths_at(time)
     extras = {"hoist_rope.reel_length": h, "drag_rope.reel_length": d}
     F = np.maximum(states[:, model.o_force : model.o_ring], 0.0)

@@ -21,7 +21,7 @@ from numba import njit
 from scipy.optimize import least_squares
 
 from . import _kernel
-from ._kernel import KIND_PARTICLE, _element_rest, _node, _segment_lengths, _body_matrix
+from ._kernel import KIND_PARTICLE, _body_matrix, _element_rest, _fixed_points, _node, _segment_lengths
 from ._model import rough_body_positions
 
 __all__ = ["Equilibrium", "solve_statics"]
@@ -53,15 +53,16 @@ def static_forces(t, y, m, work):
     o_vel = o_part + 3 * P
     o_F = o_vel + 3 * P
     o_ring = o_F + E
-    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB = work
+    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel = work
+    _fixed_points(t, m[27], m[29], fpos, fvel)
     for b in range(nb):
         _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
     _segment_lengths(t, m[17], m[18], m[19], m[27], m[28], Lseg, dLseg, reel_buf, reel_rate)
     for e in range(E):
         s = m[6][e]
         Le, _ = _element_rest(e, y, m[6], m[7], m[20], m[21], m[22], Lseg, dLseg, o_ring)
-        xa, ya, za, _, _, _, _, _, _ = _node(m[8][e], m[9][e], m[10], e, y, T, m[29], o_part, o_vel)
-        xb, yb, zb, _, _, _, _, _, _ = _node(m[11][e], m[12][e], m[13], e, y, T, m[29], o_part, o_vel)
+        xa, ya, za, _, _, _, _, _, _ = _node(m[8][e], m[9][e], m[10], e, y, T, fpos, fvel, o_part, o_vel)
+        xb, yb, zb, _, _, _, _, _, _ = _node(m[11][e], m[12][e], m[13], e, y, T, fpos, fvel, o_part, o_vel)
         d = np.sqrt((xb - xa) ** 2 + (yb - ya) ** 2 + (zb - za) ** 2)
         k = m[14][s] if m[16][s] > 0.0 else m[14][s] + m[15][s]
         y[o_F + e] = k / Le * (d - Le) if d > Le else 0.0
@@ -73,6 +74,7 @@ def _frozen(model, t):
     h, d = model.maneuver.lengths_at(t)
     a["reel_t"] = np.array([0.0])
     a["reel_len"] = np.array([[float(h), float(d)]])
+    a["point_pos"] = model.fixed_positions(t)
     from ._model import KERNEL_FIELDS
 
     return a, KERNEL_FIELDS
@@ -91,7 +93,7 @@ def initial_state(model, t=0.0, pitch_guess=0.0):
     Lseg = model.segment_lengths(t)
     for s, name in enumerate(model.seg_names):
         nodes = model.seg_nodes[name]
-        xyz = model.node_positions(y, name)[0]
+        xyz = model.node_positions(y, name, [t])[0]
         # fill particles between their anchors (non-particle nodes)
         anchors = [j for j, n in enumerate(nodes) if n[0] != KIND_PARTICLE]
         spans = []
@@ -160,6 +162,8 @@ def solve_statics(model, t=0.0, y0=None, relax_time=12.0, damping=4.0, tol=1e-7)
     if status != _kernel.STATUS_OK:
         raise RuntimeError("statics: relaxation diverged")
     y = rec[-1].copy()
+    for b in range(model.n_bodies):  # a body may have turned a full circle while settling
+        y[12 * b + 6 : 12 * b + 9] = np.angle(np.exp(1j * y[12 * b + 6 : 12 * b + 9]))
 
     arrays["relax_damping"] = 0.0
     m = tuple(arrays[k] for k in fields)

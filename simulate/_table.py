@@ -9,7 +9,7 @@ and body rates ``p q r`` (rad/s); ropes carry ``length`` (m). Extra columns
 
 from __future__ import annotations
 
-__all__ = ["BODIES", "BODY_QUANTITIES", "ROPE_CHANNELS", "trajectory_columns"]
+__all__ = ["BODIES", "BODY_QUANTITIES", "ROPE_CHANNELS", "trajectory_columns", "write_trajectory_csv"]
 
 BODIES = ("bucket", "spreader_bar", "hoist_cluster", "drag_cluster")
 BODY_QUANTITIES = ("x", "y", "z", "roll", "pitch", "yaw", "vx", "vy", "vz", "p", "q", "r")
@@ -29,3 +29,19 @@ def trajectory_columns():
         cols += [f"{body}.{q}" for q in BODY_QUANTITIES]
     cols += list(ROPE_CHANNELS)
     return cols
+
+
+def write_trajectory_csv(path, table):
+    """Write a trajectory table as CSV, atomically (temporary name, then rename).
+
+    Nine significant digits: 1 nm at 1 m, far below any measurement.
+    """
+    import os
+
+    tmp = f"{path}.tmp{os.getpid()}"
+    try:
+        table.to_csv(tmp, index=False, float_format="%.9g")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)

@@ -1,0 +1,143 @@
+"""Optional physics mechanisms: what the paper's model leaves out.
+
+Each mechanism is a small object with a name, parameters in SI units and an
+``apply(model)`` that sets the coefficients the compiled kernel reads (all
+zero in the nominal model, so switching a mechanism on never changes the
+force assembly). ``parse_physics("NAME:PARAM=VALUE,...")`` is how the
+command line names them (DESIGN 7).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["Mechanism", "MECHANISMS", "parse_physics", "mechanism_names"]
+
+
+@dataclass(frozen=True)
+class Mechanism:
+    """A mechanism and its parameters (SI units; see ``MECHANISMS``)."""
+
+    name: str
+    parameters: dict = field(default_factory=dict)
+
+    def apply(self, model):
+        MECHANISMS[self.name]["apply"](model, self.parameters)
+
+    def label(self):
+        params = ",".join(f"{k}={v:g}" for k, v in self.parameters.items())
+        return f"{self.name}:{params}" if params else self.name
+
+
+def _rings(model, which):
+    if which == "all":
+        return list(model.seg_ring.values())
+    names = {"boom": "hoist_rope", "hoist_cluster": "dump_rope"}
+    seg = names.get(which, which)
+    if seg not in model.seg_ring:
+        raise ValueError(f"pulley {which!r} unknown (boom, hoist_cluster or all)")
+    return [model.seg_ring[seg]]
+
+
+def _apply_pulley_inertia(model, p):
+    # A sheave of inertia J turning with the rope adds J / r^2 to the mass
+    # that must be accelerated when rope slides through the ring.
+    for r in _rings(model, p["pulley"]):
+        model.arrays["ring_added_mass"][r] += p["inertia"] / p["radius"] ** 2
+
+
+def _apply_aero_drag(model, p):
+    # Quadratic drag 0.5 rho cd A |v| v. Bodies: A is the mean face area of
+    # the body's box (a tumbling-average frontal area); ropes: the rope's
+    # projected width times the length each particle stands for.
+    a = model.arrays
+    for b, name in enumerate(model.body_names):
+        sx, sy, sz = model.rig.bodies[name].size
+        a["body_cda"][b] = p["cd"] * (sx * sy + sy * sz + sx * sz) / 3.0
+    for s, name in enumerate(model.seg_names):
+        a["seg_cda"][s] = p["cd"] * model.rig.ropes[name].diameter
+    a["air_density"] = p["air_density"]
+
+
+def _not_yet(name):
+    def apply(model, p):
+        raise ValueError(f"mechanism {name!r} is not implemented in this version")
+
+    return apply
+
+
+MECHANISMS = {
+    "chain_link_friction": {
+        "main": "mu",
+        "defaults": {"mu": 0.3},
+        "doc": "inter-link friction coefficient; resisting bending moment grows with chain tension",
+        "apply": _not_yet("chain_link_friction"),
+    },
+    "pulley_friction": {
+        "main": "mu",
+        "defaults": {"mu": 0.1, "pulley": "all"},
+        "doc": "ring friction coefficient, capstan-like",
+        "apply": _not_yet("pulley_friction"),
+    },
+    "pulley_inertia": {
+        "main": "inertia",
+        "defaults": {"inertia": 1e-4, "radius": 0.05, "pulley": "all"},
+        "doc": "sheave inertia (kg m^2) about its axle, sheave radius (m)",
+        "apply": _apply_pulley_inertia,
+    },
+    "rope_bending_damping": {
+        "main": "c",
+        "defaults": {"c": 0.01},
+        "doc": "bending damping per joint (N m s/rad)",
+        "apply": _not_yet("rope_bending_damping"),
+    },
+    "aero_drag": {
+        "main": "cd",
+        "defaults": {"cd": 1.0, "air_density": 1.2},
+        "doc": "quadratic drag coefficient; air density (kg/m^3)",
+        "apply": _apply_aero_drag,
+    },
+}
+
+
+def mechanism_names():
+    return sorted(MECHANISMS)
+
+
+def parse_physics(spec):
+    """Parse ``NAME[:PARAM=VALUE,...]`` into a Mechanism.
+
+    Raises
+    ------
+    ValueError
+        Unknown mechanism or parameter, or a value that is not a finite
+        non-negative number.
+    """
+    name, _, rest = str(spec).partition(":")
+    name = name.strip()
+    if name not in MECHANISMS:
+        raise ValueError(f"unknown mechanism {name!r} (choose from {', '.join(mechanism_names())})")
+    entry = MECHANISMS[name]
+    params = dict(entry["defaults"])
+    for item in filter(None, (s.strip() for s in rest.split(","))):
+        key, eq, value = item.partition("=")
+        key = key.strip()
+        if not eq:
+            raise ValueError(f"mechanism {name}: expected PARAM=VALUE, got {item!r}")
+        if key not in params:
+            raise ValueError(f"mechanism {name}: unknown parameter {key!r} (has {', '.join(params)})")
+        if isinstance(entry["defaults"][key], str):
+            params[key] = value.strip()
+            continue
+        try:
+            number = float(value)
+        except ValueError:
+            raise ValueError(f"mechanism {name}: {key}={value!r} is not a number") from None
+        if not np.isfinite(number) or number < 0:
+            raise ValueError(f"mechanism {name}: {key} must be a finite non-negative number")
+        params[key] = number
+    if name == "pulley_inertia" and params["radius"] <= 0:
+        raise ValueError("mechanism pulley_inertia: radius must be positive")
+    return Mechanism(name, params)
