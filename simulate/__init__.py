@@ -10,6 +10,7 @@ from ._kinematics import (
     euler_from_matrix,
     euler_rates_from_body_rates,
 )
+from ._markers import body_marker_positions, marker_names, marker_positions
 from ._maneuver import Maneuver, dig_maneuver, read_maneuver_csv, write_maneuver_csv
 from ._model import Model, assemble
 from ._physics import MECHANISMS, Mechanism, mechanism_names, parse_physics

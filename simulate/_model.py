@@ -285,11 +285,11 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         seg["rho"].append(rho)
 
     bodies = list(rig.bodies.values())
-    I = np.array([b.inertia for b in bodies])
+    I = np.array([b.inertia for b in bodies]).reshape(-1, 3, 3)
     E = len(el)
     arrays = {
         "nb": len(bodies),
-        "body_mass": np.array([b.mass for b in bodies]),
+        "body_mass": np.array([b.mass for b in bodies], float),
         "body_I": I,
         "body_Iinv": np.linalg.inv(I),
         "g": float(rig.g),

@@ -194,9 +194,10 @@ def load_rig(path=None):
 def _rig_from_doc(doc, source):
     bodies = {}
     # the dragline's bodies first, in DESIGN's order; other rigs may name their own
-    names = [b for b in BODIES if b in doc["bodies"]] + [b for b in doc["bodies"] if b not in BODIES]
+    doc_bodies = doc.get("bodies", {})
+    names = [b for b in BODIES if b in doc_bodies] + [b for b in doc_bodies if b not in BODIES]
     for name in names:
-        b = doc["bodies"][name]
+        b = doc_bodies[name]
         inertia = np.diag(_vec(b["inertia_diag"], f"{name}.inertia_diag"))
         if "inertia_offdiag" in b:  # Ixy, Ixz, Iyz (products of inertia, kg m^2)
             ixy, ixz, iyz = _vec(b["inertia_offdiag"], f"{name}.inertia_offdiag")

@@ -254,10 +254,10 @@ def stable_time_step(model, safety=0.9):
                 k_rot[idx] += k_el[e] * (r @ r - r**2)
     seg = a["part_seg"]
     m_part = a["seg_rho"][seg] * Lmin[seg] / a["seg_npart"][seg]
-    I_axes = np.array([np.diag(I) for I in a["body_I"]])
+    I_axes = np.array([np.diag(I) for I in a["body_I"]]).reshape(-1, 3)
     lam = max(
         np.max(2.0 * k_part / m_part, initial=0.0),
-        np.max(2.0 * k_body / a["body_mass"]),
-        np.max(2.0 * k_rot / I_axes),
+        np.max(2.0 * k_body / a["body_mass"], initial=0.0),
+        np.max(2.0 * k_rot / I_axes, initial=0.0),
     )
     return safety * 2.0 * np.sqrt(2.0) / np.sqrt(lam)
