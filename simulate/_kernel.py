@@ -7,17 +7,22 @@ State vector layout (``_model.StateLayout``):
   bodies    12 each: x y z, vx vy vz (inertial, m, m/s), roll pitch yaw (rad),
             p q r (body-frame rates, rad/s)
   particles 3 P positions, then 3 P velocities
-  elements  E standard-linear-solid forces (N), Eq. 8
+  elements  E Maxwell-branch forces F_m (N) of Eq. 8's standard linear solid
   rings     2 each: unstretched rope on side A (m), slide rate (m/s)
 
 Eq. 8 per element of rest length L_e, with Table 2's per-metre values read
-as those of a 1 m length (k = K / L_e, c = C / L_e):
-  F' = (Ks + Kv)/L_e (s' - s L_e'/L_e) + (Kv/Cv) (Ks/L_e (s - L_e) - F)   taut
-  F = 0                                                             when slack
-``relax = Kv / Cv`` does not depend on L_e; relax = 0 switches dissipation
-off (a pure spring of stiffness Ks + Kv). The rest length moves when a reel
-pays out or rope slides through a ring; the rate term is the rate of strain
-(s/L_e)' times K, so that the spring branch stays exactly K (s/L_e - 1).
+as those of a 1 m length (k = K / L_e, c = C / L_e). A standard linear solid
+is a spring Ks in parallel with a Maxwell branch (Kv in series with Cv), so
+Eq. 8 is exactly
+  F   = Ks/L_e (s - L_e) + F_m                 when taut (s > L_e), else 0
+  F_m' = Kv/L_e * L_e (s/L_e)' - (Kv/Cv) F_m    (the Maxwell branch's force)
+(differentiating F gives Eq. 8 term for term). Only F_m is a state: the
+elastic part is then exact at every slack-taut transition, where an
+integrated total force would lag and create or lose energy. The rate of
+strain (s/L_e)' keeps the form right while reels pay out or rope slides
+through a ring. Slack elements carry nothing and their F_m is reset to zero
+(the paper's F = 0 when slack); tension is never negative. ``relax`` = Kv/Cv;
+the dissipation-free model is Ks := Ks + Kv, Kv := 0.
 
 A ring pulley holds rope on two sides, A (start to ring) and B (ring to end),
 each spread evenly over its elements. Its slide coordinate obeys
@@ -232,19 +237,19 @@ def rhs(t, y, dy, m, work):
         dyy = yb - ya
         dz = zb - za
         length = np.sqrt(dx * dx + dyy * dyy + dz * dz)
-        F = y[o_F + e]
+        Fm = y[o_F + e]
         tension = 0.0
         if length > Le:
             inv = 1.0 / length
             ux, uy, uz = dx * inv, dyy * inv, dz * inv
             rate = ux * (uxb - uxa) + uy * (uyb - uya) + uz * (uzb - uza)
             invL = 1.0 / Le
-            ks = seg_ks[s] * invL
-            dy[o_F + e] = (ks + seg_kv[s] * invL) * (rate - length * dLe * invL) + seg_relax[s] * (ks * (length - Le) - F)
-            if F > 0.0:
-                tension = F
+            dy[o_F + e] = seg_kv[s] * invL * (rate - length * dLe * invL) - seg_relax[s] * Fm
+            tension = seg_ks[s] * invL * (length - Le) + Fm
+            if tension < 0.0:
+                tension = 0.0
         else:
-            dy[o_F + e] = 0.0  # slack: F is held at zero by ``project``
+            dy[o_F + e] = 0.0  # slack: F_m is held at zero by ``project``
             ux, uy, uz = 0.0, 0.0, 0.0
         if el_side[e] == 1:
             sumA[seg_ring[s]] += tension + tension * tension / (2.0 * (seg_ks[s] + seg_kv[s]))
@@ -345,7 +350,7 @@ def rhs(t, y, dy, m, work):
 
 @njit(cache=True)
 def project(t, y, m, work):
-    """Enforce Eq. 8's slack branch: F = 0 where s <= L_e, and F >= 0."""
+    """Enforce Eq. 8's slack branch: F_m = 0 where s <= L_e."""
     nb = m[0]
     P = m[5].shape[0]
     E = m[6].shape[0]
@@ -361,8 +366,7 @@ def project(t, y, m, work):
     el_seg, el_side, el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m[6], m[7], m[8], m[9], m[10], m[11], m[12], m[13]
     seg_ring, seg_nel, seg_nelA = m[20], m[21], m[22]
     for e in range(E):
-        if y[o_F + e] <= 0.0:
-            y[o_F + e] = 0.0
+        if y[o_F + e] == 0.0:
             continue
         Le, _ = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
         xa, ya, za, _, _, _, _, _, _ = _node(el_ka[e], el_ia[e], el_ra, e, y, T, fpos, fvel, o_part, o_vel)

@@ -272,9 +272,14 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         seg_elements[name] = slice(e0, len(el))
         seg_nodes[name] = chain
         rho = spec.weight_per_length / rig.g
-        seg["ks"].append(spec.static_stiffness)
-        seg["kv"].append(spec.viscous_stiffness)
-        seg["relax"].append(spec.viscous_stiffness / spec.viscous_damping if dissipation else 0.0)
+        if dissipation:
+            seg["ks"].append(spec.static_stiffness)
+            seg["kv"].append(spec.viscous_stiffness)
+            seg["relax"].append(spec.viscous_stiffness / spec.viscous_damping)
+        else:  # Cv -> infinity: the Maxwell branch is a second spring in parallel
+            seg["ks"].append(spec.static_stiffness + spec.viscous_stiffness)
+            seg["kv"].append(0.0)
+            seg["relax"].append(0.0)
         seg["len0"].append(spec.length if spec.reel is None else 0.0)
         seg["reel"].append(-1 if spec.reel is None else REELS.index(spec.reel))
         seg["reel_off"].append(0.0)

@@ -87,8 +87,9 @@ class SimulationResult:
     def energy(self):
         """Mechanical energy (J) per record: kinetic, elastic and gravity.
 
-        Elastic energy is F^2 / (2 k) with k = (Ks + Kv) / L_e, the stored
-        energy of the dissipation-free model (``dissipation=False``).
+        Elastic energy is that of the static springs, Ks/L_e stretch^2 / 2,
+        plus that of the Maxwell branches' springs, F_m^2 L_e / (2 Kv);
+        conserved exactly by the dissipation-free model (``dissipation=False``).
         """
         return mechanical_energy(self.model, self.time, self.states)
 
@@ -112,6 +113,21 @@ def element_rest_lengths(model, time, states, segment):
     return out
 
 
+def element_tensions(model, time, states, segment):
+    """Tension (N) of each element of a segment, (N, n_elements).
+
+    Eq. 8 in parallel form: Ks/L_e (s - L_e) + F_m when taut, else zero.
+    """
+    a = model.arrays
+    s = model.seg_names.index(segment)
+    nodes = model.node_positions(states, segment, time)
+    length = np.linalg.norm(np.diff(nodes, axis=1), axis=2)
+    rest = element_rest_lengths(model, time, states, segment)
+    Fm = states[:, model.o_force : model.o_ring][:, model.seg_elements[segment]]
+    tension = a["seg_ks"][s] / rest * (length - rest) + Fm
+    return np.where(length > rest, np.maximum(tension, 0.0), 0.0)
+
+
 def trajectory_table(model, time, states):
     """Trajectory table of a run (columns of DESIGN 3 first, then extras)."""
     cols = {"time": time}
@@ -133,11 +149,10 @@ def trajectory_table(model, time, states):
     frame = pd.DataFrame(cols, columns=order)
     h, d = model.maneuver.lengths_at(time)
     extras = {"hoist_rope.reel_length": h, "drag_rope.reel_length": d}
-    F = np.maximum(states[:, model.o_force : model.o_ring], 0.0)
     for seg in model.seg_names:
-        sl = model.seg_elements[seg]
-        extras[f"{seg}.tension_start"] = F[:, sl.start]
-        extras[f"{seg}.tension_end"] = F[:, sl.stop - 1]
+        tension = element_tensions(model, time, states, seg)
+        extras[f"{seg}.tension_start"] = tension[:, 0]
+        extras[f"{seg}.tension_end"] = tension[:, -1]
     return pd.concat([frame, pd.DataFrame(extras)], axis=1)
 
 
@@ -163,12 +178,14 @@ def mechanical_energy(model, time, states):
         s = a["ring_seg"][r]
         ms = a["seg_rho"][s] * L[s] / 3.0 + a["ring_added_mass"][r]
         E += 0.5 * ms * states[:, model.o_ring + 2 * r + 1] ** 2
-    for seg in model.seg_names:
-        s = model.seg_names.index(seg)
+    for s, seg in enumerate(model.seg_names):
         rest = element_rest_lengths(model, time, states, seg)
-        F = np.maximum(states[:, model.o_force : model.o_ring][:, model.seg_elements[seg]], 0.0)
-        k = (a["seg_ks"][s] + a["seg_kv"][s]) / rest
-        E += (F**2 / (2 * k)).sum(1)
+        nodes = model.node_positions(states, seg, time)
+        stretch = np.maximum(np.linalg.norm(np.diff(nodes, axis=1), axis=2) - rest, 0.0)
+        E += (0.5 * a["seg_ks"][s] / rest * stretch**2).sum(1)
+        if a["seg_kv"][s] > 0:  # energy held in the Maxwell branches' springs
+            Fm = states[:, model.o_force : model.o_ring][:, model.seg_elements[seg]]
+            E += (Fm**2 * rest / (2 * a["seg_kv"][s])).sum(1)
     return E
 
 

@@ -1,0 +1,133 @@
+"""Session directories: created complete or not at all.
+
+A session directory (DESIGN 7) holds ``capture.mcap`` and ``maneuver.csv``
+(the reel table the trial ran, the same table the MCAP's session info
+carries), and may hold a VICON-style ``markers.csv``. Directories are
+written under a temporary sibling name and renamed into place when every
+file is in them, so a crash never leaves a half-made session under its
+final name.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+
+from ._mcap_io import SESSION_FILE, write_session
+
+__all__ = ["SESSION_FILE", "MANEUVER_FILE", "session_file", "atomic_directory", "write_session_dir"]
+
+MANEUVER_FILE = "maneuver.csv"
+
+
+def session_file(path):
+    """The ``capture.mcap`` of a session directory, or the MCAP file itself.
+
+    Raises
+    ------
+    ValueError
+        If neither a session directory holding ``capture.mcap`` nor a file
+        exists there.
+    """
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        inner = os.path.join(path, SESSION_FILE)
+        if not os.path.isfile(inner):
+            raise ValueError(f"{path}: not a session directory (no {SESSION_FILE} in it)")
+        return inner
+    if not os.path.isfile(path):
+        raise ValueError(f"{path}: no such session directory or MCAP file")
+    return path
+
+
+def _check_target(path, overwrite):
+    parent = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(parent):
+        raise ValueError(f"output folder {parent} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise ValueError(f"output folder {parent} is not writable")
+    if os.path.lexists(path):
+        if not os.path.isdir(path):
+            raise ValueError(f"{path} exists and is not a directory")
+        if os.listdir(path) and not overwrite:
+            raise ValueError(f"{path} exists and is not empty (choose another name or overwrite it)")
+
+
+def atomic_directory(path, fill, overwrite=False):
+    """Create directory ``path`` complete: ``fill(tmp_dir)`` writes into a sibling, then it is renamed.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The directory to create. An empty directory there is replaced; a
+        non-empty one only with ``overwrite`` (it is removed once the new one
+        is in place).
+    fill : callable
+        ``fill(tmp_dir)`` writes every file.
+    overwrite : bool
+
+    Returns
+    -------
+    str
+        ``path``.
+
+    Raises
+    ------
+    ValueError
+        If the parent folder is missing or read-only, or ``path`` is a file
+        or a non-empty directory without ``overwrite``.
+    """
+    path = os.path.abspath(os.fspath(path))
+    _check_target(path, overwrite)
+    parent, name = os.path.split(path)
+    tmp = os.path.join(parent, f".{name}.tmp{os.getpid()}")
+    old = os.path.join(parent, f".{name}.old{os.getpid()}")
+    if os.path.lexists(tmp):
+        shutil.rmtree(tmp)
+    os.mkdir(tmp)
+    try:
+        fill(tmp)
+        moved = os.path.isdir(path) and bool(os.listdir(path))
+        if moved:
+            os.rename(path, old)
+        elif os.path.isdir(path):
+            os.rmdir(path)
+        try:
+            os.rename(tmp, path)
+        except BaseException:
+            if moved:  # put the old directory back rather than lose both
+                os.rename(old, path)
+            raise
+        if moved:
+            shutil.rmtree(old)
+    finally:
+        if os.path.lexists(tmp):
+            shutil.rmtree(tmp)
+    return path
+
+
+def write_session_dir(path, session, maneuver=None, overwrite=False):
+    """Write a session directory (``capture.mcap``, ``maneuver.csv``) atomically.
+
+    Parameters
+    ----------
+    path : str or path-like
+    session : CaptureSession
+    maneuver : Maneuver, optional
+        Written as ``maneuver.csv`` (``write_maneuver_csv``); none if None.
+    overwrite : bool
+        Replace a non-empty directory at ``path``.
+
+    Returns
+    -------
+    str
+        The directory written.
+    """
+    from ..simulate import write_maneuver_csv
+
+    def fill(tmp):
+        write_session(os.path.join(tmp, SESSION_FILE), session)
+        if maneuver is not None:
+            write_maneuver_csv(os.path.join(tmp, MANEUVER_FILE), maneuver)
+
+    return atomic_directory(path, fill, overwrite)

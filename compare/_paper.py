@@ -1,0 +1,110 @@
+"""The seed paper's reported dig-maneuver numbers and figure captions, as constants.
+
+Source: "Comparison of measured and simulated motion of a scaled dragline
+excavation system", section 4 ("Dig maneuver results") and the captions of
+Figs. 8-21 (shared/seed/000_c57abc241cbb5c97.txt); the peak numbers are also
+transcribed in shared/data/paper_parameters.toml, table ``[dig_maneuver]``.
+
+The paper reports values, not their sign convention: its peaks are copied
+here exactly as printed (m/s, rad/s, s). Our tables follow DESIGN 3 (K points
+down, so ``vz > 0`` is downward motion), and the report shows the paper's
+numbers beside ours without re-signing them.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "PAPER_SOURCE",
+    "DIG_PEAKS",
+    "DIG_REELS_STOP",
+    "SPREADER_BAR_X_OFFSET",
+    "FIGURES",
+    "FIG21_CAPTION",
+]
+
+PAPER_SOURCE = (
+    "seed paper section 4 (Dig maneuver results), "
+    "shared/data/paper_parameters.toml [dig_maneuver]"
+)
+
+# Peak table of section 4: (value, time) for the paper's measurement and its
+# simulation. "Pitch rate" is compared with our body rate q (bucket.q); see
+# compare/_compare.py for why and how far it is from the Euler pitch rate.
+DIG_PEAKS = {
+    "bucket.vx": {
+        "quantity": "longitudinal velocity",
+        "unit": "m/s",
+        "measured": (0.99, 6.2),
+        "predicted": (1.01, 5.95),
+    },
+    "bucket.vz": {
+        "quantity": "vertical velocity",
+        "unit": "m/s",
+        "measured": (0.73, 6.05),
+        "predicted": (0.91, 6.27),
+    },
+    "bucket.q": {
+        "quantity": "pitch rate",
+        "unit": "rad/s",
+        "measured": (-2.4, 6.77),
+        "predicted": (-3.2, 6.77),
+    },
+}
+
+# Both reels stop after 2.5 + 1 + 2 + 1 s of the dig maneuver (section 4).
+DIG_REELS_STOP = 6.5
+
+# "a consistent offset of approximately 51 mm" in spreader-bar x (section 4).
+SPREADER_BAR_X_OFFSET = 0.051
+
+# Figs. 8-20: (figure label, channel, the paper's caption, y-axis label).
+# Angles and angular rates are plotted in degrees (DESIGN 3), everything else
+# in SI units.
+FIGURES = (
+    ("8", "hoist_rope.length", "Measured and predicted hoist rope length vs. time.",
+     "Hoist rope length (m)"),
+    ("9", "drag_rope.length", "Measured and predicted drag rope length vs. time.",
+     "Drag rope length (m)"),
+    ("10", "bucket.x",
+     "Measured and predicted X inertial position of bucket mass center vs. time.",
+     "X inertial position (m)"),
+    ("11", "bucket.z",
+     "Measured and predicted Z inertial position of bucket mass center vs. time.",
+     "Z inertial position (m)"),
+    ("12", "bucket.pitch", "Measured and predicted bucket pitch angle vs. time.",
+     "Pitch angle (deg)"),
+    ("13", "bucket.vx",
+     "Measured and predicted X inertial velocity of bucket mass center vs. time.",
+     "X inertial velocity (m/s)"),
+    ("14", "bucket.vz",
+     "Measured and predicted Z inertial velocity of bucket mass center vs. time.",
+     "Z inertial velocity (m/s)"),
+    ("15", "bucket.q", "Measured and predicted bucket pitch rate vs. time.",
+     "Pitch rate (deg/s)"),
+    ("16a", "spreader_bar.x",
+     "Measured and predicted X inertial position of spreader bar mass center vs. time.",
+     "X inertial position (m)"),
+    ("16b", "spreader_bar.z",
+     "Measured and predicted Z inertial position of spreader bar mass center vs. time.",
+     "Z inertial position (m)"),
+    ("17", "spreader_bar.pitch", "Measured and predicted spreader bar pitch angle vs. time.",
+     "Pitch angle (deg)"),
+    ("18a", "hoist_cluster.x",
+     "Measured and predicted X inertial position of hoist cluster mass center vs. time.",
+     "X inertial position (m)"),
+    ("18b", "hoist_cluster.z",
+     "Measured and predicted Z inertial position of hoist cluster mass center vs. time.",
+     "Z inertial position (m)"),
+    ("19", "hoist_cluster.pitch", "Measured and predicted hoist cluster pitch angle vs. time.",
+     "Pitch angle (deg)"),
+    ("20a", "drag_cluster.x",
+     "Measured and predicted X inertial position of drag cluster mass center vs. time.",
+     "X inertial position (m)"),
+    ("20b", "drag_cluster.z",
+     "Measured and predicted Z inertial position of drag cluster mass center vs. time.",
+     "Z inertial position (m)"),
+)
+
+FIG21_CAPTION = (
+    "Measured and predicted bucket pitch angle vs. time for varying bead discretization."
+)
