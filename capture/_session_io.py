@@ -15,7 +15,7 @@ import shutil
 
 from ._mcap_io import SESSION_FILE, write_session
 
-__all__ = ["SESSION_FILE", "MANEUVER_FILE", "session_file", "atomic_directory", "write_session_dir"]
+__all__ = ["SESSION_FILE", "MANEUVER_FILE", "session_file", "check_directory_target", "atomic_directory", "write_session_dir"]
 
 MANEUVER_FILE = "maneuver.csv"
 
@@ -40,7 +40,8 @@ def session_file(path):
     return path
 
 
-def _check_target(path, overwrite):
+def check_directory_target(path, overwrite=False):
+    """Fail early (``ValueError``) when directory ``path`` cannot be created or replaced."""
     parent = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(parent):
         raise ValueError(f"output folder {parent} does not exist")
@@ -50,7 +51,7 @@ def _check_target(path, overwrite):
         if not os.path.isdir(path):
             raise ValueError(f"{path} exists and is not a directory")
         if os.listdir(path) and not overwrite:
-            raise ValueError(f"{path} exists and is not empty (choose another name or overwrite it)")
+            raise ValueError(f"{path} exists and is not empty (choose another name, or --force to replace it)")
 
 
 def atomic_directory(path, fill, overwrite=False):
@@ -78,7 +79,7 @@ def atomic_directory(path, fill, overwrite=False):
         or a non-empty directory without ``overwrite``.
     """
     path = os.path.abspath(os.fspath(path))
-    _check_target(path, overwrite)
+    check_directory_target(path, overwrite)
     parent, name = os.path.split(path)
     tmp = os.path.join(parent, f".{name}.tmp{os.getpid()}")
     old = os.path.join(parent, f".{name}.old{os.getpid()}")

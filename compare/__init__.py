@@ -24,3 +24,16 @@ __all__ = [
     "envelope_shape",
     "free_decay",
 ]
+from ._align import align_tables, estimate_time_offset, read_trajectory_table, reels_stop_time
+from ._compare import compare_tables, discretization_study
+from ._report import write_report
+
+__all__ += [
+    "read_trajectory_table",
+    "estimate_time_offset",
+    "align_tables",
+    "reels_stop_time",
+    "compare_tables",
+    "discretization_study",
+    "write_report",
+]

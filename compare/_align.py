@@ -214,7 +214,7 @@ def estimate_time_offset(measured, simulated, max_offset=None):
         "estimated": False,
         "reason": None,
         "channels": usable,
-        "search_range": [-limit, limit],
+        "search_range": [-float(limit), float(limit)],
         "at_search_edge": False,
         "cost": None,
         "cost_at_zero": None,

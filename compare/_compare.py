@@ -26,12 +26,11 @@ import numpy as np
 
 from ..simulate import (
     DISCRETIZATION_LEVELS,
-    SimulationError,
     euler_rates_from_body_rates,
     simulate,
 )
 from ._align import align_tables, channel_status, check_table, estimate_time_offset, reels_stop_time
-from ._decay import free_decay
+from ._decay import free_decay, matrix_pencil
 from ._metrics import channel_metrics, peak, rms_error
 from ._paper import DIG_PEAKS, PAPER_SOURCE
 
@@ -83,8 +82,9 @@ ISO_GOOD = 0.80
 # The ISO rating normalises by the measured curve's largest value, so on a
 # channel that barely moves (bucket y, roll, yaw in a planar maneuver) it
 # rates noise against noise. It counts towards the verdict only when the
-# measured channel's peak-to-peak range exceeds this many RMS tolerances.
-ISO_MIN_RANGE = 10.0
+# measured channel's peak-to-peak range exceeds this many RMS tolerances
+# (bucket vx, 0 to 1 m/s against 0.1 m/s, counts; bucket y does not).
+ISO_MIN_RANGE = 4.0
 
 _KINDS = {
     "x": "position", "y": "position", "z": "position",
@@ -103,6 +103,8 @@ FREE_DECAY_CHANNELS = (
     "drag_cluster.x", "drag_cluster.z",
 )
 MIN_DECAY_SAMPLES = 16
+# Two modes are "the same" when their damped frequencies differ by less than this fraction.
+MODE_MATCH = 0.25
 
 
 def channel_kind(channel):
@@ -208,17 +210,50 @@ def _decay_side(time, values, t_start):
     return out
 
 
-def _decay_difference(m, s):
-    """Say the free-decay difference in numbers (measured versus simulated)."""
-    if m.get("status") != "ok" or s.get("status") != "ok":
+def _matched_mode(time, values, window, f_target):
+    """Mode of ``values`` in ``window`` nearest ``f_target`` (within MODE_MATCH), or None."""
+    t0, t1 = window
+    sel = (time >= t0 - 1e-9) & (time <= t1 + 1e-9)
+    y = values[sel]
+    if y.size < MIN_DECAY_SAMPLES or not np.all(np.isfinite(y)):
         return None
-    out = {}
-    fm, fs = m["frequency_hz"], s["frequency_hz"]
-    zm, zs = m["damping_ratio"], s["damping_ratio"]
-    out["frequency_shift"] = (fs - fm) / fm if fm and fs is not None else None
-    out["damping_ratio_ratio"] = zm / zs if zm is not None and zs and zs > 0 else None
-    out["measured_shape"] = m["shape"]
-    out["simulated_shape"] = s["shape"]
+    duration = float(time[sel][-1] - time[sel][0])
+    modes = [m for m in matrix_pencil(y, float(time[1] - time[0]))
+             if m["frequency_hz"] >= 1.0 / duration
+             and abs(m["frequency_hz"] - f_target) <= MODE_MATCH * f_target]
+    if not modes:
+        return None
+    return min(modes, key=lambda m: abs(m["frequency_hz"] - f_target))
+
+
+def _decay_difference(time, m_values, s_values, m, s):
+    """Say the free-decay difference in numbers, mode against the same mode.
+
+    The reference is the measured signal's dominant mode; the simulated
+    signal's mode nearest in frequency (within ``MODE_MATCH``) is compared
+    with it, since the dominant modes of the two sides need not be the same
+    one (a model that damps too little may be dominated by a faster mode).
+    """
+    if m.get("status") != "ok" or s.get("status") != "ok" or m["frequency_hz"] is None:
+        return None
+    fm, zm = m["frequency_hz"], m["damping_ratio"]
+    mode = _matched_mode(time, s_values, (m["t_start"], m["t_end"]), fm)
+    out = {
+        "reference_frequency_hz": fm,
+        "simulated_frequency_hz": None,
+        "simulated_damping_ratio": None,
+        "frequency_shift": None,
+        "damping_ratio_ratio": None,
+        "same_dominant_mode": bool(s["frequency_hz"] is not None
+                                   and abs(s["frequency_hz"] - fm) <= MODE_MATCH * fm),
+        "measured_shape": m["shape"],
+        "simulated_shape": s["shape"],
+    }
+    if mode is not None:
+        fs, zs = mode["frequency_hz"], mode["damping_ratio"]
+        out.update(simulated_frequency_hz=fs, simulated_damping_ratio=zs, frequency_shift=(fs - fm) / fm)
+        if zm is not None and zs > 0.0:
+            out["damping_ratio_ratio"] = zm / zs
     return out
 
 
@@ -231,9 +266,38 @@ def _free_decay(time, meas, sim, t_stop):
                 entry[side] = {"status": "missing", "reason": f"not in the {side} table"}
             else:
                 entry[side] = _decay_side(time, np.asarray(table[ch], float), t_stop)
-        entry["difference"] = _decay_difference(entry["measured"], entry["simulated"])
+        entry["difference"] = (
+            _decay_difference(time, np.asarray(meas[ch], float), np.asarray(sim[ch], float),
+                              entry["measured"], entry["simulated"])
+            if ch in meas.columns and ch in sim.columns else None
+        )
         out[ch] = entry
     return out
+
+
+def _spread(values):
+    if not values:
+        return None
+    return {"min": float(min(values)), "median": float(np.median(values)), "max": float(max(values))}
+
+
+def _decay_summary(decay):
+    """Across channels: how much faster the measurement settles, and the envelope laws."""
+    compared = [e for e in decay.values() if e["difference"] is not None]
+    same = [e["difference"] for e in compared if e["difference"]["same_dominant_mode"]]
+    shapes = {"measured": {}, "simulated": {}}
+    for e in compared:
+        for side in shapes:
+            shape = e[side]["shape"]
+            shapes[side][shape] = shapes[side].get(shape, 0) + 1
+    return {
+        "n_compared": len(compared),
+        "n_same_mode": len(same),
+        "damping_ratio_ratio": _spread([d["damping_ratio_ratio"] for d in same if d["damping_ratio_ratio"] is not None]),
+        "frequency_shift": _spread([d["frequency_shift"] for d in same if d["frequency_shift"] is not None]),
+        "measured_shapes": dict(sorted(shapes["measured"].items())),
+        "simulated_shapes": dict(sorted(shapes["simulated"].items())),
+    }
 
 
 def _study_summary(time, meas, study):
@@ -246,9 +310,9 @@ def _study_summary(time, meas, study):
         table = run["table"]
         s = np.interp(time, np.asarray(table["time"], float), np.asarray(table["bucket.pitch"], float),
                       left=np.nan, right=np.nan)
-        entry = {"status": "ok", "n_state": run.get("n_state")}
-        ok = np.isfinite(s) & (np.isfinite(m) if m is not None else False)
-        entry["bucket_pitch_rms_error"] = rms_error(m[ok], s[ok]) if np.count_nonzero(ok) else None
+        entry = {"status": "ok", "n_state": run.get("n_state"), "bucket_pitch_rms_error": None}
+        if m is not None and np.count_nonzero(np.isfinite(s) & np.isfinite(m)):
+            entry["bucket_pitch_rms_error"] = rms_error(m, s)
         levels[level] = entry
     return {"channel": "bucket.pitch", "levels": levels}
 
@@ -313,9 +377,10 @@ def compare_tables(measured, simulated, time_offset="auto", free_decay_start=Non
             raise ValueError("time offset must be finite")
     offset = dict(estimate, applied=applied, source=source)
 
-    extra = [c for c in ("hoist_rope.reel_length", "drag_rope.reel_length")]
-    time, meas, sim = align_tables(measured, simulated, applied, channels=usable + [
-        c for c in extra if c in measured.columns or c in simulated.columns])
+    # Every channel either side has, so that one-sided channels can still be
+    # shown (peak table, plots) for the side that has them.
+    present = [c for c in usable + list(missing) if c in measured.columns or c in simulated.columns]
+    time, meas, sim = align_tables(measured, simulated, applied, channels=present)
     channels = _channel_entries(time, meas, sim, usable, missing)
     if not any(e["status"] == "ok" for e in channels.values()):
         raise ValueError("no channel has 3 or more samples where both tables are finite in their common time")
@@ -349,6 +414,7 @@ def compare_tables(measured, simulated, time_offset="auto", free_decay_start=Non
         "pitch_rate": _pitch_rate_note(meas, sim),
         "reels_stop": reels,
         "free_decay": decay,
+        "free_decay_summary": _decay_summary(decay),
         "summary": {
             "n_channels": len(verdicts),
             "n_pass": verdicts.count("pass"),
@@ -377,13 +443,14 @@ def discretization_study(rig=None, maneuver=None, physics=(), duration=10.0, rat
     dict
         Level -> ``{"table": DataFrame or None, "n_state": int or None,
         "error": str or None}``; a level whose integration blows up is kept
-        with its error message (and shown as such in the report).
+        with its error message (and shown as such in the report): a blow-up
+        (``SimulationError``) or a static pose that cannot be found.
     """
     out = {}
     for level in levels:
         try:
             result = simulate(rig, maneuver, level, physics, duration=duration, rate_hz=rate_hz)
-        except SimulationError as exc:
+        except RuntimeError as exc:  # SimulationError (blow-up) or statics without an equilibrium
             out[level] = {"table": None, "n_state": None, "error": " ".join(str(exc).split())}
             continue
         out[level] = {"table": result.table, "n_state": int(result.model.n_state), "error": None}

@@ -91,8 +91,6 @@ def _check_args(args):
         if _inside(args.truth_out, args.out):
             raise ValueError(f"--truth-out {args.truth_out} lies in the session directory; "
                              "the truth must never go there")
-        if _inside(args.out, args.truth_out) and os.path.realpath(args.out) == os.path.realpath(args.truth_out):
-            raise ValueError("--truth-out and --out must differ")
         check_directory_target(args.truth_out, args.force)
 
 

@@ -57,6 +57,11 @@ def main(argv=None):
     except (UsageError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         print(f"dragline: error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # output piped into e.g. `head`, which stopped reading
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except KeyboardInterrupt:
         print("dragline: interrupted; no partial outputs were left under final names", file=sys.stderr)
         return 130

@@ -6,6 +6,7 @@ derivatives and smoothing (section 3.3), and gap filling.
 """
 
 from ._bench import bench_triangulation
+from ._bench_reconstruct import bench_reconstruction
 from ._bodies import body_frames_paper, body_frames_svd, body_origin, mass_centre, two_marker_position
 from ._gaps import fill_gaps, fill_rigid
 from ._rates import (
@@ -17,5 +18,6 @@ from ._rates import (
     make_smoother,
     running_average,
 )
+from ._pipeline import fill_markers, reconstruct_markers, reconstruct_session, reconstruct_vicon_csv, trajectory_from_markers
 from ._ropes import rope_length_cubic
 from ._triangulate import triangulate, undistort_detections

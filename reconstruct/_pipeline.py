@@ -6,7 +6,11 @@ package:
 1. **Triangulation** (``reconstruct_markers``): every camera that sees a
    marker, outlier views dropped; a marker seen by fewer than two agreeing
    views is NaN.
-2. **Gaps** (``fill_markers``): first, for every body with three or more
+2. **Outliers and gaps** (``fill_markers``): a sample farther than
+   ``max_deviation`` (20 mm) from the median of its +-3 frames is removed:
+   triangulation rejects a ghost only where a third view outvotes it, and a
+   ghost seen by two cameras makes a point that jumps away for a frame.
+   Then, for every body with three or more
    markers, a missing marker is placed from the same frame's other markers
    by the rigid fit (``fill_rigid``; it needs three visible markers, so in
    practice only the four-marker bucket gets filled this way, and any gap
@@ -50,11 +54,13 @@ package:
 from __future__ import annotations
 
 import os
+import warnings
 
 import numpy as np
 import pandas as pd
+from numpy.lib.stride_tricks import sliding_window_view
 
-from ..simulate import BODIES, ROPE_CHANNELS, euler_from_matrix, load_rig, marker_names, trajectory_columns
+from ..simulate import ROPE_CHANNELS, euler_from_matrix, load_rig, marker_names, trajectory_columns
 from ._bodies import body_frames_paper, body_frames_svd, body_origin, mass_centre
 from ._gaps import fill_gaps, fill_rigid, nan_runs
 from ._rates import RunningAverage, SavitzkyGolay, Smoother, body_rates, finite_difference, make_smoother
@@ -164,8 +170,28 @@ def _body_blocks(rig):
             yield body, [f"{body}.{m}" for m in spec.markers], mb
 
 
-def fill_markers(names, positions, rig, max_gap=10):
-    """Fill gaps: rigid-body fill, then short spline fill (stage 2).
+def _outliers(p, max_deviation, half_window=3):
+    """Samples farther than ``max_deviation`` (m) from the median of their +-half_window frames.
+
+    The median of seven samples ignores one or two wild ones, so a marker
+    that jumps for a frame or two (a ghost that two views agreed on) stands
+    out, while smooth motion stays within a few mm of it (a deviation of
+    20 mm over +-15 ms takes some 180 m/s^2). Needs three finite samples in
+    the window; returns a (frames, markers) bool array.
+    """
+    F = p.shape[0]
+    pad = np.pad(p, ((half_window, half_window), (0, 0), (0, 0)), constant_values=np.nan)
+    win = sliding_window_view(pad, 2 * half_window + 1, axis=0)[:F]
+    enough = np.isfinite(win[..., 0, :]).sum(axis=-1) >= 3
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows
+        med = np.nanmedian(win, axis=-1)
+    with np.errstate(invalid="ignore"):
+        return enough & (np.linalg.norm(p - med, axis=-1) > max_deviation)
+
+
+def fill_markers(names, positions, rig, max_gap=10, max_deviation=0.02):
+    """Outliers out, then rigid-body fill, then short spline fill (stage 2).
 
     Parameters
     ----------
@@ -176,26 +202,34 @@ def fill_markers(names, positions, rig, max_gap=10):
     rig : Rig
     max_gap : int
         Longest interior run of missing frames filled in time (frames).
+    max_deviation : float or None
+        A sample farther than this (m) from the median of its +-3 frames is
+        an outlier and removed before filling (None: keep every sample).
 
     Returns
     -------
     filled : ndarray, shape (frames, markers, 3)
     summary : dict
-        Per marker (dotted names): ``missing_frames`` (before filling),
-        ``rigid_frames`` (filled from the body's other markers),
-        ``spline_gaps`` and ``spline_frames`` (filled in time), ``open_gaps``,
-        ``open_frames`` and ``longest_open_gap`` (left NaN: longer than
-        ``max_gap``, or at the start or end of the record); the same
-        counts summed over markers under ``total``.
+        Per marker (dotted names): ``missing_frames`` (NaN on input),
+        ``outlier_frames`` (removed as outliers), ``rigid_frames`` (filled
+        from the body's other markers), ``spline_gaps`` and ``spline_frames``
+        (filled in time), ``open_gaps``, ``open_frames`` and
+        ``longest_open_gap`` (left NaN: longer than ``max_gap``, or at the
+        start or end of the record); the same counts summed over markers
+        under ``total``.
     """
     p = np.asarray(positions, dtype=float)
     if p.ndim != 3 or p.shape[-1] != 3 or p.shape[1] != len(names):
         raise ValueError(f"positions must have shape (frames, {len(names)}, 3), got {p.shape}")
     if int(max_gap) != max_gap or max_gap < 0:
         raise ValueError(f"max_gap must be a non-negative integer, got {max_gap}")
+    if max_deviation is not None and not max_deviation > 0:
+        raise ValueError(f"max_deviation must be positive or None, got {max_deviation}")
     canon = [_canonical(str(n)) for n in names]
     col = {n: k for k, n in enumerate(canon)}
     out = p.copy()
+    bad = _outliers(p, max_deviation) if max_deviation is not None else np.zeros(p.shape[:2], bool)
+    out[bad] = np.nan
     rigid = np.zeros(len(canon), dtype=np.int64)
     for _, mnames, mb in _body_blocks(rig):
         if len(mnames) < 3 or not all(n in col for n in mnames):
@@ -210,6 +244,7 @@ def fill_markers(names, positions, rig, max_gap=10):
         starts, stops = nan_runs(missing[:, k])
         per[n] = {
             "missing_frames": int((~np.isfinite(p[:, k]).all(axis=-1)).sum()),
+            "outlier_frames": int(bad[:, k].sum()),
             "rigid_frames": int(rigid[k]),
             "spline_gaps": int(s["filled"][k]),
             "spline_frames": int(s["filled_frames"][k]),
@@ -217,9 +252,10 @@ def fill_markers(names, positions, rig, max_gap=10):
             "open_frames": int((stops - starts).sum()),
             "longest_open_gap": int((stops - starts).max()) if starts.size else 0,
         }
-    keys = ("missing_frames", "rigid_frames", "spline_gaps", "spline_frames", "open_gaps", "open_frames")
+    keys = ("missing_frames", "outlier_frames", "rigid_frames", "spline_gaps", "spline_frames", "open_gaps",
+            "open_frames")
     total = {key: sum(v[key] for v in per.values()) for key in keys}
-    return out, {"max_gap": int(max_gap), "markers": per, "total": total}
+    return out, {"max_gap": int(max_gap), "max_deviation": max_deviation, "markers": per, "total": total}
 
 
 # ------------------------------------------------------------------ bodies
@@ -344,7 +380,7 @@ def _rates(x, dt, smoother, derivative=finite_difference):
 # ------------------------------------------------------------------ table
 
 def trajectory_from_markers(names, positions, rate_hz, rig=None, method="paper",
-                            smoothing="running_average", max_gap=10, start_time=0.0):
+                            smoothing="running_average", max_gap=10, start_time=0.0, max_deviation=0.02):
     """The trajectory table (DESIGN 3) from labelled 3D markers (stages 2-6).
 
     Parameters
@@ -366,6 +402,8 @@ def trajectory_from_markers(names, positions, rate_hz, rig=None, method="paper",
         Longest gap (frames) filled by the spline.
     start_time : float
         Time (s) of the first frame.
+    max_deviation : float or None
+        Outlier limit of ``fill_markers`` (m).
 
     Returns
     -------
@@ -396,7 +434,7 @@ def trajectory_from_markers(names, positions, rate_hz, rig=None, method="paper",
     smoother = _smoother(smoothing)
     idx = _marker_index(names, rig)
     order = list(idx)
-    pts, gaps = fill_markers(order, p[:, [idx[n] for n in order]], rig, max_gap)
+    pts, gaps = fill_markers(order, p[:, [idx[n] for n in order]], rig, max_gap, max_deviation)
     col = {n: k for k, n in enumerate(order)}
     F, dt = p.shape[0], 1.0 / float(rate_hz)
     nan = np.full(F, np.nan)
@@ -501,7 +539,8 @@ def match_cameras(cameras, camera_names, image_size=None, source="the calibratio
 
 
 def reconstruct_session(session, cameras, rig=None, method="paper", smoothing="running_average",
-                        max_gap=10, max_reprojection_px=3.0, min_views=2):
+                        max_gap=10, max_reprojection_px=3.0, min_views=2, calibration_name="the calibration",
+                        max_deviation=0.02):
     """Trajectory table of a capture session's trial (all stages).
 
     Parameters
@@ -510,10 +549,12 @@ def reconstruct_session(session, cameras, rig=None, method="paper", smoothing="r
         A session, or ``capture.mcap`` / a session directory to read.
     cameras : sequence of Camera
         The calibration; matched to the session's cameras by name.
-    rig, method, smoothing, max_gap
+    rig, method, smoothing, max_gap, max_deviation
         As for ``trajectory_from_markers``.
     max_reprojection_px, min_views
         As for ``triangulate``.
+    calibration_name : str
+        How error messages name the calibration (e.g. its file).
 
     Returns
     -------
@@ -532,13 +573,14 @@ def reconstruct_session(session, cameras, rig=None, method="paper", smoothing="r
         from ..capture import read_session  # noqa: PLC0415
 
         session, report = read_session(session)
-    cams = match_cameras(cameras, session.camera_names, session.image_size)
+    cams = match_cameras(cameras, session.camera_names, session.image_size, calibration_name)
     trial = np.asarray(session.trial, dtype=float)
     if trial.shape[1] < 3:
         raise ValueError(f"the session's trial has {trial.shape[1]} frames; at least 3 are needed")
     points, info = reconstruct_markers(trial, cams, max_reprojection_px, min_views)
     names = list(session.marker_names)
-    table, summary = trajectory_from_markers(names, points, session.rate_hz, rig, method, smoothing, max_gap)
+    table, summary = trajectory_from_markers(names, points, session.rate_hz, rig, method, smoothing, max_gap,
+                                             max_deviation=max_deviation)
     tri = info["summary"]
     summary["triangulation"] = {
         "rejected_views": tri["rejected_views"],
@@ -550,12 +592,14 @@ def reconstruct_session(session, cameras, rig=None, method="paper", smoothing="r
     return table, names, points, summary
 
 
-def reconstruct_vicon_csv(path, rig=None, method="paper", smoothing="running_average", max_gap=10):
+def reconstruct_vicon_csv(path, rig=None, method="paper", smoothing="running_average", max_gap=10,
+                          max_deviation=0.02):
     """Trajectory table from a VICON-style CSV of labelled 3D markers.
 
     Marker names ``subject:marker`` (``bucket:alpha``, ``hoist_rope:m1``);
     time is ``(frame - first frame) / rate``; a frame number skipped in the
-    file is a frame with every marker missing.
+    file is a frame with every marker missing. Options as for
+    ``trajectory_from_markers``.
 
     Returns
     -------
@@ -583,7 +627,7 @@ def reconstruct_vicon_csv(path, rig=None, method="paper", smoothing="running_ave
     full[frame - frame[0]] = positions
     try:
         table, summary = trajectory_from_markers(names, full, export.trajectories.rate_hz, rig,
-                                                 method, smoothing, max_gap)
+                                                 method, smoothing, max_gap, max_deviation=max_deviation)
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
     summary["path"] = path

@@ -4,8 +4,7 @@ Two stages, as Costello and Kyle (2004) did it and then some:
 1. dynamic relaxation: the full model with the reels frozen and heavy
    velocity damping added, from a rough hanging pose, until it is nearly
    at rest;
-2. a Newton-type polish (``scipy.optimize.least_squares``) of the static
-   balance itself: net force on every particle and body, net moment on every
+2. a damped Newton polish of the static balance itself: net force on every particle and body, net moment on every
    body, and tension balance across every ring pulley, with every Maxwell
    branch relaxed (Eq. 8's steady state: F = Ks times strain).
 The result is a state with zero velocities and steady element forces, from
@@ -17,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from . import _kernel
 from ._kernel import KIND_PARTICLE
@@ -99,22 +97,22 @@ def _unknown_index(model):
     return np.array(idx)
 
 
-def solve_statics(model, t=0.0, y0=None, relax_time=12.0, damping=4.0, tol=1e-7):
+def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1e-6):
     """Equilibrium pose at the reel lengths of time ``t``.
 
     Parameters
     ----------
     model : Model
     t : float
-        Time whose reel lengths are used (s).
+        Time whose reel lengths (and fixed-point positions) are used (s).
     y0 : ndarray, optional
         Starting state (a rough hanging pose by default).
-    relax_time : float
-        Simulated seconds of damped relaxation before the polish.
     damping : float
         Velocity damping rate of the relaxation (1/s).
+    max_relax_time : float
+        Most simulated seconds of relaxation before the polish starts anyway.
     tol : float
-        Target for the largest force imbalance (N) of the polish.
+        Largest force (N) or moment (N m) imbalance accepted.
 
     Returns
     -------
@@ -131,47 +129,145 @@ def solve_statics(model, t=0.0, y0=None, relax_time=12.0, damping=4.0, tol=1e-7)
     work = _kernel.make_work(m)
     y = initial_state(model, t) if y0 is None else np.array(y0, float)
     dt = stable_time_step(model)
-    n_steps = int(np.ceil(relax_time / dt))
-    rec, status, _, _ = _kernel.integrate(y, 0.0, dt, n_steps, n_steps, m, work, 1e3)
-    if status != _kernel.STATUS_OK:
-        raise RuntimeError("statics: relaxation diverged")
-    y = rec[-1].copy()
+    chunk = int(np.ceil(1.0 / dt))
+    speed_index = np.r_[[12 * b + k for b in range(model.n_bodies) for k in (3, 4, 5)], np.arange(model.o_vel, model.o_force)].astype(int)
+    for _ in range(int(np.ceil(max_relax_time))):
+        rec, status, _, _ = _kernel.integrate(y, 0.0, dt, chunk, chunk, m, work, 1e3)
+        if status != _kernel.STATUS_OK:
+            raise RuntimeError("statics: relaxation diverged")
+        y = rec[-1].copy()
+        if np.max(np.abs(y[speed_index]), initial=0.0) < 1e-4:  # m/s: close enough for Newton
+            break
     for b in range(model.n_bodies):  # a body may have turned a full circle while settling
         y[12 * b + 6 : 12 * b + 9] = np.angle(np.exp(1j * y[12 * b + 6 : 12 * b + 9]))
 
     arrays["relax_damping"] = 0.0
     m = tuple(arrays[k] for k in fields)
     unknown = _unknown_index(model)
+    rows = _accel_index(model)
     scale = _residual_scale(model)
+    rest = _at_rest(model, y)
     dy = np.zeros(model.n_state)
 
     def residual(q):
-        yy = y.copy()
-        yy[unknown] = q
-        for b in range(model.n_bodies):
-            yy[12 * b + 3 : 12 * b + 6] = 0.0
-            yy[12 * b + 9 : 12 * b + 12] = 0.0
-        yy[model.o_vel : model.o_force] = 0.0
-        for r in range(model.n_rings):
-            yy[model.o_ring + 2 * r + 1] = 0.0
-        yy[model.o_force : model.o_ring] = 0.0  # at rest the Maxwell branches have relaxed
-        _kernel.rhs(0.0, yy, dy, m, work)
-        return dy[_accel_index(model)] * scale
+        rest[unknown] = q
+        _kernel.rhs(0.0, rest, dy, m, work)
+        return dy[rows] * scale
 
-    sol = least_squares(residual, y[unknown], method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=200 * len(unknown))
-    yy = y.copy()
-    yy[unknown] = sol.x
-    for b in range(model.n_bodies):
-        yy[12 * b + 3 : 12 * b + 6] = 0.0
-        yy[12 * b + 9 : 12 * b + 12] = 0.0
-    yy[model.o_vel : model.o_force] = 0.0
-    for r in range(model.n_rings):
-        yy[model.o_ring + 2 * r + 1] = 0.0
-    yy[model.o_force : model.o_ring] = 0.0
-    worst = float(np.max(np.abs(residual(sol.x))))
-    if not np.isfinite(worst) or worst > 1e-3:
+    q = _newton(residual, rest[unknown].copy(), _jacobian_pattern(model, unknown), tol)
+    rest[unknown] = q
+    worst = float(np.max(np.abs(residual(q)), initial=0.0))
+    if not np.isfinite(worst) or worst > tol:
         raise RuntimeError(f"statics: no equilibrium found (largest imbalance {worst:.3g} N)")
-    return Equilibrium(state=yy, residual=worst)
+    return Equilibrium(state=rest.copy(), residual=worst)
+
+
+def _at_rest(model, y):
+    """The state with every velocity zero and every Maxwell branch relaxed."""
+    rest = np.array(y, float)
+    for b in range(model.n_bodies):
+        rest[12 * b + 3 : 12 * b + 6] = 0.0
+        rest[12 * b + 9 : 12 * b + 12] = 0.0
+    rest[model.o_vel : model.o_ring] = 0.0
+    rest[model.o_ring + 1 :: 2] = 0.0
+    return rest
+
+
+def _newton(residual, q, pattern, tol, max_iter=60):
+    """Damped Newton on the static balance with a grouped finite-difference Jacobian.
+
+    Central differences: a stiff element stretches by h^2 / (2 L) under a
+    transverse step h, and with forward differences that error swamps the
+    soft transverse stiffness T / L the equilibrium hinges on (it is even in
+    h, so central differences cancel it). The step must also stay well below
+    the smallest stretch (T L / K, micrometres for stiff chains), or the
+    difference straddles the slack kink. The least-squares step copes with
+    directions of zero stiffness (a body free to spin about a rope through
+    its mass centre); backtracking keeps each step downhill.
+    """
+    groups = _column_groups(pattern)
+    r = residual(q)
+    for _ in range(max_iter):
+        if np.max(np.abs(r), initial=0.0) < 0.01 * tol:
+            break
+        J = np.zeros(pattern.shape)
+        h = 1e-8 * np.maximum(1.0, np.abs(q))  # well inside every element's stretch
+        for g in groups:
+            qq = q.copy()
+            qq[g] += h[g]
+            up = residual(qq)
+            qq[g] -= 2 * h[g]
+            dr = up - residual(qq)
+            for j in g:
+                rows = pattern[:, j]
+                J[rows, j] = dr[rows] / (2 * h[j])
+        step = np.linalg.lstsq(J, -r, rcond=1e-12)[0]
+        norm0 = np.linalg.norm(r)
+        for _ in range(30):
+            r_new = residual(q + step)
+            if np.isfinite(r_new).all() and np.linalg.norm(r_new) < norm0:
+                break
+            step *= 0.5
+        else:
+            break  # no downhill step: the caller judges what is left
+        q = q + step
+        r = r_new
+    return q
+
+
+def _jacobian_pattern(model, unknown):
+    """Which residual rows each unknown can move: element connectivity.
+
+    A ring's slide changes every rest length of its segment, so it couples
+    the whole segment.
+    """
+    a = model.arrays
+    col = {int(i): k for k, i in enumerate(unknown)}
+
+    def node_dofs(kind, idx):
+        if kind == KIND_PARTICLE:
+            return [col[model.o_part + 3 * idx + k] for k in range(3)]
+        if kind == _kernel.KIND_BODY:
+            return [col[12 * idx + k] for k in (0, 1, 2, 6, 7, 8)]
+        return []
+
+    seg_dofs = {}
+    element_dofs = []
+    for e in range(model.n_elements):
+        dofs = node_dofs(a["el_ka"][e], a["el_ia"][e]) + node_dofs(a["el_kb"][e], a["el_ib"][e])
+        s = a["el_seg"][e]
+        element_dofs.append((s, dofs))
+        seg_dofs.setdefault(s, set()).update(dofs)
+    pattern = np.eye(len(unknown), dtype=bool)
+    for s, dofs in element_dofs:
+        coupled = set(dofs)
+        r = a["seg_ring"][s]
+        if r >= 0:
+            coupled |= seg_dofs[s] | {col[model.o_ring + 2 * r]}
+        idx = np.array(sorted(coupled))
+        pattern[np.ix_(idx, idx)] = True
+    for s, dofs in seg_dofs.items():
+        r = a["seg_ring"][s]
+        if r >= 0:
+            idx = np.array(sorted(dofs | {col[model.o_ring + 2 * r]}))
+            pattern[np.ix_(idx, idx)] = True
+    return pattern
+
+
+def _column_groups(pattern):
+    """Greedy colouring: columns that share no row are perturbed together."""
+    groups, used = [], []
+    for j in range(pattern.shape[1]):
+        rows = pattern[:, j]
+        for g, mask in zip(groups, used):
+            if not (mask & rows).any():
+                g.append(j)
+                mask |= rows
+                break
+        else:
+            groups.append([j])
+            used.append(rows.copy())
+    return [np.array(g) for g in groups]
 
 
 def _accel_index(model):

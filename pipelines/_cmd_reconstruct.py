@@ -1,0 +1,159 @@
+"""``dragline reconstruct``: 2D centroids or 3D markers -> measured trajectory table.
+
+Input is a session directory, its ``capture.mcap``, or a VICON-style CSV of
+labelled 3D markers. A session needs a calibration (``--calibration``, or a
+``cameras.json`` in the session directory); a CSV needs none. A session
+directory without ``capture.mcap`` but with a ``markers.csv`` is read as
+that CSV.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+from dragline.capture import write_vicon_csv
+from dragline.capture._cameras import load_cameras
+from dragline.reconstruct._pipeline import (
+    METHODS,
+    SMOOTHINGS,
+    reconstruct_session,
+    reconstruct_vicon_csv,
+    vicon_name,
+)
+from dragline.simulate import write_trajectory_csv
+
+from ._options import check_output_path, rig_from_args
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "reconstruct", help="triangulate a capture and recover bodies, ropes and rates",
+        description="Recover the measured trajectory table (mass centres, Euler angles, velocities, "
+                    "body rates, rope lengths) from a capture session or a VICON-style marker CSV.")
+    p.add_argument("input", metavar="SESSION_DIR|capture.mcap|export.csv", help="what to reconstruct")
+    p.add_argument("--calibration", metavar="cameras.json",
+                   help="camera calibration (default: cameras.json in the session directory)")
+    p.add_argument("--out", required=True, metavar="MEASURED.csv", help="trajectory table to write")
+    p.add_argument("--vicon-csv", metavar="MARKERS.csv",
+                   help="also write the triangulated, labelled markers (before gap filling) as a VICON-style CSV")
+    p.add_argument("--rig", metavar="FILE", help="rig TOML file (default: the built-in 1/16-scale rig)")
+    p.add_argument("--method", choices=METHODS, default="paper",
+                   help="body frames: the paper's Eqs. 14-16 or a least-squares rigid fit (default paper)")
+    p.add_argument("--smoothing", choices=SMOOTHINGS, default="running_average",
+                   help="smoother for velocities and body rates (default: the paper's 12-sample "
+                        "running average, centred on i-5...i+6)")
+    p.add_argument("--max-gap", type=int, default=10, metavar="FRAMES",
+                   help="longest marker gap filled by spline (frames, default 10); longer gaps stay NaN")
+    p.add_argument("--outlier-mm", type=float, default=20.0, metavar="MM",
+                   help="a marker farther than this from the median of its +-3 frames is dropped as an "
+                        "outlier before gap filling (default 20; 0 keeps every sample)")
+    p.add_argument("--max-reprojection-px", type=float, default=3.0, metavar="PX",
+                   help="views reprojecting worse than this are rejected as outliers (default 3)")
+    p.add_argument("--summary-json", metavar="FILE", help="write the reconstruction summary (gap counts, ...) as JSON")
+    p.add_argument("--quiet", action="store_true", help="print nothing on success")
+
+
+def _resolve_input(path):
+    """('session', mcap path, session dir or None) or ('csv', csv path, None)."""
+    if os.path.isdir(path):
+        mcap = os.path.join(path, "capture.mcap")
+        if os.path.isfile(mcap):
+            return "session", mcap, path
+        csv = os.path.join(path, "markers.csv")
+        if os.path.isfile(csv):
+            return "csv", csv, None
+        raise ValueError(f"{path}: session directory holds neither capture.mcap nor markers.csv")
+    if not os.path.exists(path):
+        raise ValueError(f"{path}: no such file or directory")
+    ext = os.path.splitext(path)[1].lower()
+    if ext == ".mcap":
+        return "session", path, None
+    if ext == ".csv":
+        return "csv", path, None
+    raise ValueError(f"{path}: expected a session directory, a .mcap session file or a .csv marker export")
+
+
+def _calibration(args, session_dir, session_path):
+    path = args.calibration
+    if path is None and session_dir is not None:
+        candidate = os.path.join(session_dir, "cameras.json")
+        path = candidate if os.path.isfile(candidate) else None
+    if path is None:
+        raise ValueError(f"{session_path}: no calibration for this session; pass --calibration cameras.json "
+                         "(made by 'dragline calibrate')")
+    if not os.path.isfile(path):
+        raise ValueError(f"{path}: no such calibration file")
+    return path, load_cameras(path)
+
+
+def _write_json(path, doc):
+    tmp = f"{path}.tmp{os.getpid()}"
+    try:
+        with open(tmp, "w") as fh:
+            json.dump(doc, fh, indent=1)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def run(args):
+    outputs = [p for p in (args.out, args.vicon_csv, args.summary_json) if p]
+    for p in outputs:
+        check_output_path(p)
+    if len(set(map(os.path.abspath, outputs))) != len(outputs):
+        raise ValueError("--out, --vicon-csv and --summary-json must name different files")
+    if args.max_gap < 0:
+        raise ValueError("--max-gap must be >= 0")
+    if not args.outlier_mm >= 0:
+        raise ValueError("--outlier-mm must be >= 0")
+    if not args.max_reprojection_px > 0:
+        raise ValueError("--max-reprojection-px must be positive")
+    kind, path, session_dir = _resolve_input(args.input)
+    if os.path.abspath(path) in map(os.path.abspath, outputs):
+        raise ValueError(f"{path}: the input would be overwritten by an output")
+    rig = rig_from_args(args)
+    options = dict(rig=rig, method=args.method, smoothing=args.smoothing, max_gap=args.max_gap,
+                   max_deviation=args.outlier_mm * 1e-3 if args.outlier_mm > 0 else None)
+    notes = []
+    if kind == "csv":
+        if args.vicon_csv:
+            raise ValueError("--vicon-csv needs a capture session as input (the input is already a marker CSV)")
+        if args.calibration:
+            notes.append("--calibration ignored: a marker CSV is already three-dimensional")
+        table, summary = reconstruct_vicon_csv(path, **options)
+    else:
+        from dragline.capture import read_session  # noqa: PLC0415
+
+        session, report = read_session(path)
+        cal_path, cameras = _calibration(args, session_dir, path)
+        try:
+            table, names, points, summary = reconstruct_session(
+                session, cameras, max_reprojection_px=args.max_reprojection_px,
+                calibration_name=cal_path, **options)
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
+        summary["session"] = {k: report[k] for k in ("path", "truncated", "lost", "frames")}
+        if report["truncated"]:
+            notes.append(f"{path} was cut short; lost {report['lost']}")
+        if args.vicon_csv:
+            write_vicon_csv(args.vicon_csv, [vicon_name(n) for n in names], points, session.rate_hz)
+    write_trajectory_csv(args.out, table)
+    if args.summary_json:
+        _write_json(args.summary_json, summary)
+    if not args.quiet:
+        for note in notes:
+            print(f"dragline: note: {note}", file=sys.stderr)
+        total = summary["gaps"]["total"]
+        print(
+            f"reconstructed {summary['frames']} frames at {summary['rate_hz']:g} Hz ({args.method} frames, "
+            f"{summary['smoothing']['description']}); {total['outlier_frames']} outlier marker-frames dropped; "
+            f"gaps: {total['spline_gaps']} filled by spline, "
+            f"{total['rigid_frames']} marker-frames from rigid bodies, {total['open_gaps']} left open "
+            f"({total['open_frames']} marker-frames, limit {args.max_gap} frames); wrote {args.out}"
+            + (f" and {args.vicon_csv}" if args.vicon_csv else ""),
+            file=sys.stderr,
+        )
+    return 0

@@ -1,0 +1,154 @@
+"""The comparison report PDF: determinism, pages, and what the pages say (dragline.compare._report).
+
+The PDF is read back with pypdf (text of each page). Tables are built here
+from closed-form signals, so the numbers the report must print are known.
+The last test reads back the report that ``.ci/run`` builds for the
+built-in dig maneuver.
+"""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dragline.compare import compare_tables, write_report
+from dragline.compare._paper import FIG21_CAPTION, FIGURES
+from dragline.simulate import dig_maneuver, trajectory_columns
+
+pypdf = pytest.importorskip("pypdf")
+
+REPO = Path(__file__).resolve().parents[1]
+CI_DIR = REPO / "dragline-out" / "ci" / "dig_compare"
+T = np.round(np.arange(0.0, 10.0 + 1e-9, 0.02), 10)
+# Summary + all channels, Figs. 8-20 two per page, free-decay text and plots, Fig. 21.
+PAGES_WITHOUT_STUDY = 2 + math.ceil(len(FIGURES) / 2) + 2
+
+
+def synthetic_table(t, reel_columns=True):
+    cols = {"time": t}
+    for k, ch in enumerate(trajectory_columns()[1:-2]):
+        cols[ch] = 0.3 * np.sin(2 * np.pi * (0.2 + 0.01 * k) * t + k) + 0.01 * k * t
+    hoist, drag = dig_maneuver().lengths_at(t)
+    tau = np.clip(t - 6.5, 0.0, None)
+    cols["hoist_rope.length"] = hoist + 0.02 * np.sin(4.0 * tau) * np.exp(-0.3 * tau)
+    cols["drag_rope.length"] = drag
+    if reel_columns:
+        cols["hoist_rope.reel_length"], cols["drag_rope.reel_length"] = hoist, drag
+    return pd.DataFrame(cols)
+
+
+def pages_text(path):
+    return [page.extract_text() for page in pypdf.PdfReader(str(path)).pages]
+
+
+@pytest.fixture(scope="module")
+def case():
+    measured = synthetic_table(T, reel_columns=False)
+    simulated = synthetic_table(T)
+    bump = np.exp(-0.5 * ((T - 6.2) / 0.1) ** 2)
+    measured["bucket.vx"] = 0.99 * bump
+    simulated["bucket.vx"] = 1.2 * bump
+    measured["bucket.q"] = np.nan  # a channel the measurement lacks
+    study_table = simulated.copy()
+    study_table["bucket.pitch"] = study_table["bucket.pitch"] + 0.01
+    study = {
+        "low": {"table": study_table, "n_state": 133, "error": None},
+        "high": {"table": None, "n_state": None, "error": "simulation blew up at t = 6.4450 s: a speed above 100 m/s"},
+    }
+    metrics = compare_tables(measured, simulated, study=study)
+    return measured, simulated, metrics, study
+
+
+@pytest.fixture(scope="module")
+def report(case, tmp_path_factory):
+    path = tmp_path_factory.mktemp("report") / "report.pdf"
+    measured, simulated, metrics, study = case
+    write_report(path, measured, simulated, metrics, study=study, sources={"measured": "m.csv", "simulated": "s.csv"})
+    return path
+
+
+def test_identical_inputs_give_a_byte_identical_pdf(case, report, tmp_path):
+    measured, simulated, metrics, study = case
+    again = tmp_path / "again.pdf"
+    write_report(again, measured, simulated, metrics, study=study, sources={"measured": "m.csv", "simulated": "s.csv"})
+    first, second = report.read_bytes(), again.read_bytes()
+    assert first[:5] == b"%PDF-" and first == second
+    assert b"CreationDate" not in first and b"ModDate" not in first
+    assert list(tmp_path.iterdir()) == [again]  # no temporary file left behind
+
+
+def test_page_count_and_figure_captions(report):
+    text = pages_text(report)
+    assert len(text) == PAGES_WITHOUT_STUDY + 1
+    everything = "\n".join(text)
+    for label, _, caption, _ in FIGURES:
+        assert f"Fig. {label}." in everything, label
+        assert caption.split(" of ")[0] in everything.replace("\n", " "), label
+    assert "Fig. 21." in text[-1] and FIG21_CAPTION[:40] in text[-1]
+    assert "Pitch angle (deg)" in everything and "Pitch rate (deg/s)" in everything
+
+
+def test_summary_page_numbers(case, report):
+    measured, simulated, metrics, _ = case
+    summary = pages_text(report)[0]
+    assert "Measured: m.csv" in summary and "Simulated: s.csv" in summary
+    # Paper's peak table beside ours: bump peaks 0.990 at 6.20 s and 1.200 at 6.20 s.
+    assert "+0.990 @ 6.20 s" in summary and "+1.200 @ 6.20 s" in summary
+    assert "+1.010 @ 5.95 s" in summary and "-2.400 @ 6.77 s" in summary and "-3.200 @ 6.77 s" in summary
+    n = metrics["summary"]
+    assert f"{n['n_pass']} of {n['n_channels']} channels within tolerance" in summary
+    assert "Time offset (measured clock - simulation clock): estimated +0.0000 s" in summary
+    # bucket.vx: residual 0.21 bump -> RMS by hand.
+    rms = 0.21 * math.sqrt(np.mean(np.exp(-((T - 6.2) / 0.1) ** 2)))
+    assert f"{rms:.3g} m/s" in summary
+    assert "RMS <= 20 mm" in summary and "RMS <= 3 deg" in summary
+
+
+def test_missing_channel_is_marked_not_silently_empty(report):
+    text = pages_text(report)
+    assert "bucket.q" in text[0] and "MISSING: no finite samples in the measured table" in text[0]
+    fig15 = next(t for t in text if "Fig. 15." in t)
+    assert "Measured: MISSING (no finite samples in the measured table)" in fig15
+    assert "no residual: one side is missing" in fig15
+    assert "missing" in text[0].split("pitch rate q")[1].split("\n")[0]
+
+
+def test_failed_discretization_level_is_reported(report):
+    fig21 = pages_text(report)[-1]
+    assert "FAILED: simulation blew up at t = 6.4450 s" in fig21
+    assert "low" in fig21 and "133" in fig21
+
+
+def test_report_without_study_has_no_fig21(case, tmp_path):
+    measured, simulated, metrics, _ = case
+    path = tmp_path / "plain.pdf"
+    write_report(path, measured, simulated, metrics)
+    text = pages_text(path)
+    assert len(text) == PAGES_WITHOUT_STUDY
+    assert not any("Fig. 21." in t for t in text)
+
+
+def test_ci_dig_maneuver_report_reads_back():
+    """The report .ci/run builds for the built-in dig maneuver (see the compare docs)."""
+    pdf, metrics_path = CI_DIR / "report.pdf", CI_DIR / "metrics.json"
+    if not pdf.exists() or not metrics_path.exists():
+        pytest.skip(f"{pdf} not built; .ci/run builds it")
+    metrics = json.loads(metrics_path.read_text())
+    text = pages_text(pdf)
+    assert len(text) == PAGES_WITHOUT_STUDY + 1  # built with --discretization-study
+    summary = text[0]
+    assert "measured vs predicted" in summary
+    off = metrics["time_offset"]
+    assert f"Offset applied: {off['applied']:+.4f} s" in summary
+    for row in metrics["peaks"]:
+        for side in ("measured", "simulated"):
+            assert f"{row[side]['value']:+.3f} @ {row[side]['time']:.2f} s" in summary, (row["channel"], side)
+    pitch = metrics["channels"]["bucket.pitch"]
+    assert f"{math.degrees(pitch['rms_error']):.3g} deg" in summary
+    assert "-2.400 @ 6.77 s" in summary
+    assert metrics["reels_stop"]["time"] == pytest.approx(6.5)
+    assert "Fig. 21." in text[-1]
+    assert all(level in text[-1] for level in ("low", "baseline", "medium", "high"))
