@@ -206,21 +206,21 @@ def _summary_lines(metrics, sources):
 
 def _channel_lines(metrics):
     head = (
-        f"{'Channel':<22}{'RMS err':<12}{'Peak err':<12}{'Meas. peak @ t':<21}{'Pred. peak @ t':<21}"
-        f"{'S&G M':<7}{'S&G P':<7}{'S&G C':<7}{'ISO':<6}{'Theil':<7}Verdict"
+        f"{'Channel':<21}{'RMS error':<15}{'Peak error':<15}{'Meas. peak @ t':<18}{'Pred. peak @ t':<18}"
+        f"{'S&G M':<7}{'S&G P':<6}{'S&G C':<6}{'ISO':<5}{'Theil':<6}Verdict"
     )
-    lines = ["Errors in mm, deg, m/s or deg/s; peaks in SI units (m, rad, m/s, rad/s); "
-             "S&G = Sprague-Geers magnitude, phase, combined.", head]
+    lines = ["Errors in mm, deg, m/s or deg/s; peaks in SI units (m, rad, m/s, rad/s) @ time (s); "
+             "S&G = Sprague-Geers magnitude, phase, combined; ISO = ISO/TS 18571 rating; Theil = Theil's U.", "", head]
     for channel, e in metrics["channels"].items():
         if e["status"] != "ok":
-            lines.append(f"{channel:<22}MISSING: {e['reason']}")
+            lines.append(f"{channel:<21}MISSING: {e['reason']}")
             continue
-        mp = f"{e['measured_peak']:+.4g} @ {e['measured_peak_time']:.2f}"
-        sp = f"{e['simulated_peak']:+.4g} @ {e['simulated_peak_time']:.2f}"
+        mp = f"{e['measured_peak']:+.3g} @ {e['measured_peak_time']:.2f}"
+        sp = f"{e['simulated_peak']:+.3g} @ {e['simulated_peak_time']:.2f}"
         lines.append(
-            f"{channel:<22}{error_text(channel, e['rms_error']):<12}{error_text(channel, e['peak_error']):<12}"
-            f"{mp:<21}{sp:<21}{fmt(e['sg_magnitude'], '+.3f'):<7}{fmt(e['sg_phase'], '.3f'):<7}"
-            f"{fmt(e['sg_combined'], '.3f'):<7}{fmt(e['iso_rating'], '.2f'):<6}{fmt(e['theil_u'], '.3f'):<7}"
+            f"{channel:<21}{error_text(channel, e['rms_error']):<15}{error_text(channel, e['peak_error']):<15}"
+            f"{mp:<18}{sp:<18}{fmt(e['sg_magnitude'], '+.3f'):<7}{fmt(e['sg_phase'], '.3f'):<6}"
+            f"{fmt(e['sg_combined'], '.3f'):<6}{fmt(e['iso_rating'], '.2f'):<5}{fmt(e['theil_u'], '.3f'):<6}"
             f"{e['verdict'].upper()}"
         )
     return lines

@@ -359,6 +359,9 @@ def _as_briefed(rig, maneuver, y0, step, duration, md_run):
     """Equal-step speed on the briefed drive, and how far apart its runs drift (mm)."""
     a1, wa1, _ = _ours(rig, maneuver, y0, step, duration)
     a4, _, _ = _ours(rig, maneuver, y0, step / 4, duration)
+    nudged = np.array(y0, float)
+    nudged[2] += 1e-6  # the first particle 1 um lower
+    a1n, _, _ = _ours(rig, maneuver, nudged, step, duration)
     m1, wm1 = md_run(step, "RK4", maneuver)
     m4, _ = md_run(step / 4, "RK4", maneuver)
     first = int(round(1.0 / RECORD_DT)) + 1
@@ -372,6 +375,7 @@ def _as_briefed(rig, maneuver, y0, step, duration, md_run):
         "ours_step_vs_quarter_step_first_second_mm": _max_error_mm(a1[:first], a4[:first]),
         "moordyn_vs_ours_quarter_step_mm": _max_error_mm(m4, a4),
         "moordyn_step_vs_quarter_step_mm": _max_error_mm(m1, m4),
+        "ours_start_nudged_1um_mm": _max_error_mm(a1, a1n),
         "slack_element_fraction": float(np.mean(np.linalg.norm(np.diff(a4, axis=1), axis=2) <= rest)),
     }
 
@@ -464,6 +468,9 @@ def bench_moordyn(particles=12, repeats=3, duration=10.0, levels_mm=(1.0, 0.1), 
     curves = []
     same = True
     ours_default, default_wall, default_step = _ours(rig, smooth, eq.state, None, duration)
+    nudged = eq.state.copy()
+    nudged[2] += 1e-6  # the first particle 1 um lower: how sensitive is this drive?
+    out["start_nudged_1um_mm"] = _max_error_mm(_ours(rig, smooth, nudged, base, duration)[0], ours_default)
 
     with MoorDynLine(particles, ic_time=ic_time) as md:
         md_eq = md.equilibrium()

@@ -1,0 +1,122 @@
+"""``dragline simulate`` and the simulator's handling of bad input."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dragline.pipelines.cli import main
+from dragline.simulate import (
+    Maneuver,
+    SimulationError,
+    dig_maneuver,
+    parse_physics,
+    read_maneuver_csv,
+    simulate,
+    trajectory_columns,
+)
+
+
+def test_dig_maneuver_reaches_the_papers_lengths():
+    man = dig_maneuver()
+    assert man.hoist_length[-1] == pytest.approx(10.1)
+    assert man.drag_length[-1] == pytest.approx(1.41, abs=0.011)
+    assert man.end_time == pytest.approx(6.5)
+    h, d = man.lengths_at([1.0, 3.0])
+    assert h[0] == pytest.approx(8.6 + 0.36) and d[1] == pytest.approx(4.2 - 0.75 - 0.61 * 0.5)
+
+
+def test_simulate_writes_the_trajectory_table(tmp_path, capsys):
+    out = tmp_path / "traj.csv"
+    assert main(["simulate", "--duration", "1", "--rate", "100", "--out", str(out)]) == 0
+    table = pd.read_csv(out)
+    assert list(table.columns[: len(trajectory_columns())]) == trajectory_columns()
+    assert len(table) == 101 and table["time"].iloc[-1] == pytest.approx(1.0)
+    assert np.isfinite(table[trajectory_columns()].to_numpy()).all()
+    assert not list(tmp_path.glob("*.tmp*"))
+
+
+def test_user_maneuver_csv_is_used(tmp_path):
+    path = tmp_path / "m.csv"
+    path.write_text("time,hoist_length,drag_length\n0,8.6,4.2\n1,8.6,4.2\n")
+    out = tmp_path / "t.csv"
+    assert main(["simulate", "--maneuver", str(path), "--duration", "0.5", "--out", str(out)]) == 0
+    assert pd.read_csv(out)["bucket.vx"].abs().max() < 1e-6  # reels still: stays at rest
+
+
+@pytest.mark.parametrize(
+    "rows, message",
+    [
+        ("time,hoist_length,drag_length\n", "empty"),
+        ("time,hoist_length,drag_length\n0,8.6,4.2\n2,8.7,4.1\n1,8.8,4.0\n", "not strictly increasing"),
+        ("time,hoist_length,drag_length\n0,8.6,-4.2\n", "positive"),
+        ("time,hoist\n0,8.6\n", "lacks column"),
+        ("time,hoist_length,drag_length\n0,8.6,abc\n", "non-numeric"),
+    ],
+)
+def test_bad_maneuver_tables_exit_2_with_one_line(tmp_path, capsys, rows, message):
+    path = tmp_path / "m.csv"
+    path.write_text(rows)
+    with pytest.raises(ValueError, match=message):
+        read_maneuver_csv(path)
+    out = tmp_path / "t.csv"
+    assert main(["simulate", "--maneuver", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0]
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--discretization", "huge"], "unknown discretization"),
+        (["--discretization", "hoist_rope=0"], "positive integer"),
+        (["--discretization", "tail_rope=4"], "unknown rope"),
+        (["--physics", "warp_drive"], "unknown mechanism"),
+        (["--physics", "aero_drag:cd=-1"], "non-negative"),
+        (["--physics", "aero_drag:speed=3"], "unknown parameter"),
+        (["--maneuver", "/nonexistent/m.csv"], "does not exist"),
+        (["--rig", "/nonexistent/rig.toml"], "cannot read rig"),
+        (["--duration", "-1"], "duration must be positive"),
+    ],
+)
+def test_bad_options_exit_2_with_one_line(tmp_path, capsys, args, message):
+    out = tmp_path / "t.csv"
+    assert main(["simulate", *args, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+    assert not out.exists()
+
+
+def test_usage_errors_exit_2_with_one_line(capsys):
+    assert main(["simulate"]) == 2
+    assert main(["no-such-command"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 2 and all(line.startswith("dragline: error:") for line in lines)
+
+
+def test_help_lists_the_subcommands(capsys):
+    assert main([]) == 0
+    text = capsys.readouterr().out
+    for command in ("simulate", "synth", "calibrate", "reconstruct", "inspect"):
+        assert command in text
+
+
+def test_blow_up_names_time_and_place_and_writes_nothing(rig, tmp_path, capsys):
+    with pytest.raises(SimulationError, match=r"blew up at t = [0-9.]+ s: .* in (body|rope segment|ring)"):
+        simulate(rig, duration=1.0, dt=2e-3)  # far beyond RK4's stability limit
+    out = tmp_path / "t.csv"
+    assert main(["simulate", "--dt", "0.002", "--duration", "1", "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "blew up" in err[0]
+    assert not out.exists() and not list(tmp_path.iterdir())
+
+
+def test_known_mechanisms_change_the_motion(rig):
+    still = Maneuver([0.0], [10.1], [1.4])
+    base = simulate(rig, dig_maneuver(), duration=8.0, rate_hz=50).table
+    drag = simulate(rig, dig_maneuver(), physics=[parse_physics("aero_drag:cd=1.2")], duration=8.0, rate_hz=50).table
+    assert np.abs(drag["bucket.x"] - base["bucket.x"]).max() > 1e-4
+    # a mechanism acting only on motion leaves the rest pose alone
+    a = simulate(rig, still, duration=0.5, rate_hz=50).table
+    b = simulate(rig, still, physics=[parse_physics("aero_drag:cd=1.2")], duration=0.5, rate_hz=50).table
+    np.testing.assert_allclose(a["bucket.z"], b["bucket.z"], atol=1e-9)

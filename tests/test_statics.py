@@ -1,0 +1,64 @@
+"""Static poses of the built-in rig against the paper (DESIGN 4.6), and its data."""
+
+import tomllib
+
+import numpy as np
+import pytest
+
+from conftest import SHARED
+from dragline.simulate import Maneuver, assemble, solve_statics
+
+
+def _pose(rig, hoist, drag):
+    model = assemble(rig, Maneuver([0.0], [hoist], [drag]))
+    eq = solve_statics(model)
+    assert eq.residual < 1e-6
+    return eq.state, model
+
+
+def test_start_pose_matches_the_paper(rig):
+    # Paper section 4: hoist 8.6 m, drag 4.2 m put the bucket 1.2 m above the
+    # dig plane at pitch -52 deg near the far end of its travel. Tolerances:
+    # the rig geometry is fitted (not given), and this is how close it got.
+    y, _ = _pose(rig, 8.6, 4.2)
+    assert y[2] == pytest.approx(-1.2, abs=0.025)
+    assert np.degrees(y[7]) == pytest.approx(-52.0, abs=0.5)
+    assert y[0] < -4.5  # far end: more than 4.5 m out toward the boom (at x = -5.35)
+
+
+def test_end_pose_matches_the_paper(rig):
+    # hoist 10.1 m, drag 1.4 m: 0.70 m up, near mid-travel
+    y, _ = _pose(rig, 10.1, 1.4)
+    assert y[2] == pytest.approx(-0.70, abs=0.035)
+    assert -3.2 < y[0] < -2.0
+
+
+def test_rig_is_symmetric_at_rest(rig):
+    y, model = _pose(rig, 8.6, 4.2)
+    for b in range(model.n_bodies):
+        assert abs(y[12 * b + 1]) < 1e-8  # y position
+        assert abs(y[12 * b + 6]) < 1e-7 and abs(y[12 * b + 8]) < 1e-7  # roll, yaw
+
+
+def test_builtin_rig_carries_the_papers_numbers(rig):
+    path = SHARED / "data" / "paper_parameters.toml"
+    if not path.exists():
+        pytest.skip("shared/data/paper_parameters.toml not beside the checkout")
+    paper = tomllib.loads(path.read_text())
+    for name, body in paper["bodies"].items():
+        spec = rig.bodies[name]
+        assert spec.mass == body["mass"]
+        np.testing.assert_array_equal(spec.cg_body, body["cg_body"])
+        np.testing.assert_array_equal(np.diag(spec.inertia), body["inertia_diag"])
+    for name, rope in paper["ropes"].items():
+        for side in ("left_", "right_") if name.startswith("left_") else ("",):
+            spec = rig.ropes[name.replace("left_", side) if side else name]
+            assert spec.weight_per_length == rope["weight_per_length"]
+            assert spec.static_stiffness == rope["static_stiffness"]
+            assert spec.viscous_stiffness == rope["viscous_stiffness"]
+            assert spec.viscous_damping == rope["viscous_damping"]
+            if spec.reel is None:
+                assert spec.length == rope["length"]
+    order = ["drag_rope", "dump_rope", "hoist_rope", "left_drag_chain", "left_lower_hoist_chain", "left_upper_hoist_chain"]
+    for level in ("low", "baseline", "medium", "high"):
+        assert [rig.particle_counts(level)[r] for r in order] == paper["discretization"][level]
