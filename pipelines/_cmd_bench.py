@@ -1,0 +1,60 @@
+"""``dragline bench``: benchmarks that print figures (JSON), never pass/fail."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+
+def add_parser(sub):
+    p = sub.add_parser("bench", help="measure speed and accuracy (prints figures)",
+                       description="Benchmarks: measured figures as JSON on stdout or in --json FILE.")
+    p.add_argument("what", choices=sorted(BENCHES), help="which benchmark")
+    p.add_argument("--json", metavar="FILE", help="also write the figures to FILE")
+    p.add_argument("--repeats", type=int, default=5, help="timed runs per figure (median reported)")
+    p.add_argument("--seed", type=int, default=0)
+
+
+def _simulate(args):
+    from dragline.simulate._bench import bench_simulate, summary_lines
+
+    report = bench_simulate(repeats=args.repeats)
+    return report, summary_lines(report)
+
+
+def _capture(args):
+    from dragline.capture._capture_bench import bench_capture
+
+    return bench_capture(seed=args.seed), []
+
+
+def _reconstruct(args):
+    from dragline.reconstruct._bench_reconstruct import bench_reconstruction
+
+    return bench_reconstruction(seed=args.seed), []
+
+
+def _triangulation(args):
+    from dragline.reconstruct import bench_triangulation
+
+    return bench_triangulation(seed=args.seed, repeats=args.repeats), []
+
+
+BENCHES = {"simulate": _simulate, "capture": _capture, "reconstruct": _reconstruct, "triangulation": _triangulation}
+
+
+def run(args):
+    if args.repeats < 1:
+        raise ValueError("--repeats must be at least 1")
+    report, lines = BENCHES[args.what](args)
+    text = json.dumps(report, indent=2, default=float)
+    if args.json:
+        tmp = f"{args.json}.tmp{os.getpid()}"
+        with open(tmp, "w") as fh:
+            fh.write(text + "\n")
+        os.replace(tmp, args.json)
+    for line in lines:
+        print(line, file=sys.stderr)
+    print(text)
+    return 0

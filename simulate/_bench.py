@@ -1,0 +1,124 @@
+"""``dragline bench simulate``: speed and accuracy of the simulator, measured.
+
+Each discretization level runs in its own process (so its peak memory is its
+own) after a warm-up run that loads or compiles the kernel; the compile time
+itself is measured in a process with an empty numba cache.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+LEVELS = ("low", "baseline", "medium", "high")
+
+_LEVEL_SCRIPT = r"""
+import json, resource, sys, time
+import numpy as np
+from dragline.simulate import assemble, dig_maneuver, load_rig, simulate, stable_time_step
+from dragline.simulate import _kernel
+from dragline.simulate._statics import solve_statics
+
+level, repeats, duration = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
+rig, man = load_rig(), dig_maneuver()
+model = assemble(rig, man, level)
+t = time.perf_counter(); eq = solve_statics(model); statics = [time.perf_counter() - t]
+dt = stable_time_step(model)
+per = int(np.ceil(1 / 200 / dt)); dt = 1 / 200 / per
+m = model.kernel_tuple(); work = _kernel.make_work(m)
+n = int(round(duration * 200)) * per
+def run(step, steps):
+    t = time.perf_counter()
+    rec, status, _, _ = _kernel.integrate(eq.state, 0.0, step, steps, steps // int(round(duration * 200)), m, work, 100.0)
+    assert status == 0
+    return time.perf_counter() - t, rec
+run(dt, per)  # warm-up: loads the compiled kernel
+walls = []
+for _ in range(repeats):
+    wall, rec = run(dt, n)
+    walls.append(wall)
+for _ in range(max(0, repeats - 1)):
+    t = time.perf_counter(); solve_statics(model); statics.append(time.perf_counter() - t)
+_, ref = run(dt / 8, 8 * n)
+pos = 1e3 * np.max(np.linalg.norm(rec[:, 0:3] - ref[:, 0:3], axis=1))
+pitch = np.degrees(np.max(np.abs(rec[:, 7] - ref[:, 7])))
+print(json.dumps({
+    "wall_s": float(np.median(walls)), "wall_runs_s": walls,
+    "statics_s": float(np.median(statics)),
+    "real_time_factor": duration / float(np.median(walls)),
+    "states": model.n_state, "dt_s": dt, "steps": n,
+    "error_bucket_position_mm": float(pos), "error_bucket_pitch_deg": float(pitch),
+    "reference": "same level, step / 8",
+    "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+}))
+"""
+
+_COLD_SCRIPT = r"""
+import time
+t = time.perf_counter()
+from dragline.simulate import simulate
+simulate(duration=0.05)
+print(time.perf_counter() - t)
+"""
+
+
+def _python(script, *args, env=None):
+    out = subprocess.run([sys.executable, "-c", script, *map(str, args)], capture_output=True, text=True, env=env, check=False)
+    if out.returncode != 0:
+        raise RuntimeError(f"benchmark subprocess failed: {out.stderr.strip().splitlines()[-1] if out.stderr else out.returncode}")
+    return out.stdout.strip().splitlines()[-1]
+
+
+def bench_simulate(levels=LEVELS, repeats=5, duration=10.0, moordyn=True):
+    """Figures for the 10 s dig maneuver at each discretization level.
+
+    Returns
+    -------
+    dict
+        ``{level: {wall_s, statics_s, real_time_factor, error_bucket_position_mm,
+        error_bucket_pitch_deg, peak_memory_mb, ...}, "compile": {...},
+        "moordyn": {...}}``. ``wall_s`` is the integration of the maneuver
+        (median of ``repeats``), ``statics_s`` the equilibrium before it.
+    """
+    report = {"duration_s": duration, "repeats": repeats, "cpu_count": os.cpu_count()}
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        cold = float(_python(_COLD_SCRIPT, env=env))
+        warm = float(_python(_COLD_SCRIPT, env=env))
+    report["compile"] = {
+        "cold_first_call_s": cold,
+        "warm_cache_first_call_s": warm,
+        "compile_s": cold - warm,
+        "note": "first 0.05 s simulation in a fresh process, empty vs filled numba cache",
+    }
+    for level in levels:
+        report[level] = json.loads(_python(_LEVEL_SCRIPT, level, repeats, duration))
+    if moordyn:
+        try:
+            from ._bench_moordyn import bench_moordyn
+        except ImportError as exc:  # moordyn is an optional (bench) dependency
+            report["moordyn"] = {"skipped": str(exc)}
+        else:
+            report["moordyn"] = bench_moordyn()
+    return report
+
+
+def summary_lines(report):
+    """Human-readable lines of a bench_simulate report."""
+    lines = [f"compile: {report['compile']['compile_s']:.1f} s (cold first call {report['compile']['cold_first_call_s']:.1f} s)"]
+    for level in LEVELS:
+        if level in report:
+            r = report[level]
+            lines.append(
+                f"{level:9s} {r['states']:4d} states  wall {r['wall_s']:.2f} s (x{r['real_time_factor']:.1f} real time)  "
+                f"statics {r['statics_s']:.2f} s  error {r['error_bucket_position_mm']:.4f} mm / {r['error_bucket_pitch_deg']:.5f} deg  "
+                f"peak {r['peak_memory_mb']:.0f} MB"
+            )
+    return lines
+
+
