@@ -28,6 +28,7 @@ from ..simulate import (
     DISCRETIZATION_LEVELS,
     euler_rates_from_body_rates,
     simulate,
+    trajectory_columns,
 )
 from ._align import align_tables, channel_status, check_table, estimate_time_offset, reels_stop_time
 from ._decay import free_decay, matrix_pencil
@@ -131,6 +132,7 @@ def _verdict(channel, metrics, measured):
     iso_applies = bool(finite.size and np.ptp(finite) > ISO_MIN_RANGE * tol)
     rating = metrics["iso_rating"]
     rms_ok = metrics["rms_error"] is not None and metrics["rms_error"] <= tol
+    # ">= 0.80" as the verdict rule; the grade names follow the standard's "> 0.80".
     iso_ok = (not iso_applies) or (rating is not None and rating >= ISO_GOOD)
     return {
         "rms_tolerance": tol,
@@ -144,9 +146,10 @@ def _verdict(channel, metrics, measured):
 
 def _channel_entries(time, meas, sim, usable, missing):
     channels = {}
-    for ch, reason in missing.items():
-        channels[ch] = {"status": "missing", "reason": reason, "verdict": "missing"}
-    for ch in usable:
+    for ch in trajectory_columns()[1:]:  # canonical order, missing ones in place
+        if ch in missing:
+            channels[ch] = {"status": "missing", "reason": missing[ch], "verdict": "missing"}
+            continue
         m = np.asarray(meas[ch], float)
         s = np.asarray(sim[ch], float)
         if np.count_nonzero(np.isfinite(m) & np.isfinite(s)) < 3:

@@ -7,6 +7,8 @@ the simulator (the nominal dig maneuver) for the real-data paths.
 
 import json
 import math
+import os
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -288,9 +290,8 @@ def test_peak_table_against_hand_built_extremes(pair):
 
 def test_paper_numbers_match_the_transcription():
     tomllib = pytest.importorskip("tomllib")
-    from conftest import SHARED
-
-    path = SHARED / "data" / "paper_parameters.toml"
+    shared = Path(os.environ.get("DRAGLINE_SHARED", Path(__file__).resolve().parents[2] / "shared"))
+    path = shared / "data" / "paper_parameters.toml"
     if not path.exists():
         pytest.skip(f"{path} not available")
     dig = tomllib.loads(path.read_text())["dig_maneuver"]
