@@ -230,7 +230,7 @@ def estimate_time_offset(measured, simulated, max_offset=None):
     grid = np.arange(-k, k + 1) * step
     costs = np.array([_offset_cost(o, t_m, ropes_m, t_s, ropes_s)[0] for o in grid])
     if not np.isfinite(costs).any():
-        result["reason"] = "rope lengths do not overlap in time at any offset searched"
+        result["reason"] = "the rope lengths do not overlap in time, or do not change, at any offset searched"
         return result
     i = int(np.nanargmin(np.where(np.isfinite(costs), costs, np.nan)))
     best = float(grid[i])

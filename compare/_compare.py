@@ -33,7 +33,7 @@ from ..simulate import (
 from ._align import align_tables, channel_status, check_table, estimate_time_offset, reels_stop_time
 from ._decay import free_decay, matrix_pencil
 from ._metrics import channel_metrics, peak, rms_error
-from ._paper import DIG_PEAKS, PAPER_SOURCE
+from ._paper import DIG_PEAKS, PAPER_SOURCE, SPREADER_BAR_X_OFFSET
 
 __all__ = [
     "TOLERANCES",
@@ -181,6 +181,17 @@ def _peak_table(time, meas, sim):
                 row[side] = {"value": value, "time": when}
         rows.append(row)
     return rows
+
+
+def _spreader_offset(meas, sim):
+    """Mean predicted-minus-measured spreader-bar x, beside the paper's ~51 mm."""
+    ch = "spreader_bar.x"
+    out = {"channel": ch, "paper": SPREADER_BAR_X_OFFSET, "mean_difference": None}
+    if ch in meas.columns and ch in sim.columns:
+        d = np.asarray(sim[ch], float) - np.asarray(meas[ch], float)
+        if np.isfinite(d).any():
+            out["mean_difference"] = float(np.mean(d[np.isfinite(d)]))
+    return out
 
 
 def _pitch_rate_note(meas, sim, body="bucket"):
@@ -415,6 +426,7 @@ def compare_tables(measured, simulated, time_offset="auto", free_decay_start=Non
         "peaks": _peak_table(time, meas, sim),
         "paper_source": PAPER_SOURCE,
         "pitch_rate": _pitch_rate_note(meas, sim),
+        "spreader_bar_x_offset": _spreader_offset(meas, sim),
         "reels_stop": reels,
         "free_decay": decay,
         "free_decay_summary": _decay_summary(decay),

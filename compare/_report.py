@@ -149,6 +149,11 @@ def _peak_lines(metrics):
         compare_text = (f"differs from it by at most {fmt(diff.get('measured'))} rad/s in the measurement and "
                         f"{fmt(diff.get('simulated'))} rad/s in the prediction")
     lines.append(f"Pitch rate is the {note['definition']}; the Euler pitch rate {note['euler_pitch_rate']} {compare_text}.")
+    sb = metrics["spreader_bar_x_offset"]
+    lines.append(
+        f"Spreader bar x, mean predicted - measured: {fmt(None if sb['mean_difference'] is None else 1000 * sb['mean_difference'], '+.1f')} mm "
+        f"(the paper: a consistent offset of about {1000 * sb['paper']:.0f} mm)."
+    )
     lines.append(
         "Signs follow DESIGN 3 (K points down: vz > 0 is downward). The paper does not state its plots' "
         "sign convention; its numbers are as printed."

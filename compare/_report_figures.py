@@ -65,7 +65,8 @@ def _metric_line(channel, entry):
     if entry is None or entry["status"] != "ok":
         return "not compared: " + ("no data" if entry is None else entry["reason"])
     scale, unit = ERROR_UNITS[channel_kind(channel)]
-    iso = f"ISO {entry['iso_rating']:.2f} ({entry['iso_grade']}{'' if entry['iso_applies'] else ', not counted'})"
+    rating = "-" if entry["iso_rating"] is None else f"{entry['iso_rating']:.2f}"
+    iso = f"ISO {rating} ({entry['iso_grade']}{'' if entry['iso_applies'] else ', not counted'})"
     sg = "S&G M/P/C " + "/".join("-" if v is None else f"{v:.2f}" for v in
                                  (entry["sg_magnitude"], entry["sg_phase"], entry["sg_combined"]))
     theil = "-" if entry["theil_u"] is None else f"{entry['theil_u']:.3f}"

@@ -153,6 +153,22 @@ def _node(kind, idx, arms, e, y, T, fpos, fvel, o_part, o_vel):
 
 
 @njit(cache=True, inline="always")
+def _push(kind, idx, a0, a1, a2, fx, fy, fz, fp, fb, mb):
+    """Add force f (N) at an element end: to a particle, or to a body with its moment."""
+    if kind == KIND_PARTICLE:
+        fp[idx, 0] += fx
+        fp[idx, 1] += fy
+        fp[idx, 2] += fz
+    elif kind == KIND_BODY:
+        fb[idx, 0] += fx
+        fb[idx, 1] += fy
+        fb[idx, 2] += fz
+        mb[idx, 0] += a1 * fz - a2 * fy
+        mb[idx, 1] += a2 * fx - a0 * fz
+        mb[idx, 2] += a0 * fy - a1 * fx
+
+
+@njit(cache=True, inline="always")
 def _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring):
     """Rest length L_e (m) and its rate (m/s) of element e."""
     s = el_seg[e]
@@ -168,6 +184,93 @@ def _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLse
         return uA / n, vs / n
     n = seg_nel[s] - seg_nelA[s]
     return (Lseg[s] - uA) / n, (dLseg[s] - vs) / n
+
+
+@njit(cache=True)
+def _joint_moments(m, T, y, el_u, el_dv, el_len, el_T, el_arm, fp, fb, mb):
+    """Bending moments at rope joints: bending damping and chain-link friction.
+
+    A joint joins two consecutive elements of a segment, or an end element
+    and the body it hangs from. With omega_rel the relative angular velocity
+    of the two (an element's is u x (v_b - v_a) / L) across the second
+    element (its part along the element removed: a rope carries no torsion),
+    the moment on the second is
+        M = -c omega_rel - mu r T omega_rel / sqrt(|omega_rel|^2 + eps^2)
+    (c: bending damping, N m s/rad; mu: link friction coefficient; r: link
+    pin radius, m; T: joint tension, N), and -M on the first. A moment M on
+    an element is the couple (M x u) / L at its ends. Both terms only remove
+    energy: the power is M . omega_rel <= 0. The friction is
+    Coulomb-like, smoothed below eps (rad/s) so the explicit step stays
+    stable.
+    """
+    joint_a, joint_b, joint_seg = m[35], m[36], m[37]
+    seg_bend_c, seg_link_mu, seg_link_r, eps = m[38], m[39], m[45], m[46]
+    el_ka, el_ia, el_kb, el_ib = m[8], m[9], m[11], m[12]
+    for j in range(joint_b.shape[0]):
+        s = joint_seg[j]
+        c = seg_bend_c[s]
+        mu = seg_link_mu[s]
+        if c == 0.0 and mu == 0.0:
+            continue
+        e2 = joint_b[j]
+        inv2 = 1.0 / el_len[e2]
+        u2x, u2y, u2z = el_u[e2, 0], el_u[e2, 1], el_u[e2, 2]
+        w2x = (u2y * el_dv[e2, 2] - u2z * el_dv[e2, 1]) * inv2
+        w2y = (u2z * el_dv[e2, 0] - u2x * el_dv[e2, 2]) * inv2
+        w2z = (u2x * el_dv[e2, 1] - u2y * el_dv[e2, 0]) * inv2
+        e1 = joint_a[j]
+        if e1 >= 0:
+            inv1 = 1.0 / el_len[e1]
+            u1x, u1y, u1z = el_u[e1, 0], el_u[e1, 1], el_u[e1, 2]
+            w1x = (u1y * el_dv[e1, 2] - u1z * el_dv[e1, 1]) * inv1
+            w1y = (u1z * el_dv[e1, 0] - u1x * el_dv[e1, 2]) * inv1
+            w1z = (u1x * el_dv[e1, 1] - u1y * el_dv[e1, 0]) * inv1
+            tension = 0.5 * (el_T[e1] + el_T[e2])
+        else:  # joint with a body: its inertial angular velocity T (p, q, r)
+            b = -e1 - 1
+            p, q, r = y[12 * b + 9], y[12 * b + 10], y[12 * b + 11]
+            w1x = T[b, 0, 0] * p + T[b, 0, 1] * q + T[b, 0, 2] * r
+            w1y = T[b, 1, 0] * p + T[b, 1, 1] * q + T[b, 1, 2] * r
+            w1z = T[b, 2, 0] * p + T[b, 2, 1] * q + T[b, 2, 2] * r
+            tension = el_T[e2]
+        rx, ry, rz = w2x - w1x, w2y - w1y, w2z - w1z
+        # only bending across the second element: a rope carries no torsion
+        along = rx * u2x + ry * u2y + rz * u2z
+        rx, ry, rz = rx - along * u2x, ry - along * u2y, rz - along * u2z
+        gain = c
+        if mu > 0.0 and tension > 0.0:
+            gain += mu * seg_link_r[s] * tension / np.sqrt(rx * rx + ry * ry + rz * rz + eps * eps)
+        Mx, My, Mz = -gain * rx, -gain * ry, -gain * rz
+        # couple on the second element: (M x u2) / L2 at its b end, minus at its a end
+        fx = (My * u2z - Mz * u2y) * inv2
+        fy = (Mz * u2x - Mx * u2z) * inv2
+        fz = (Mx * u2y - My * u2x) * inv2
+        _push(el_kb[e2], el_ib[e2], el_arm[e2, 3], el_arm[e2, 4], el_arm[e2, 5], fx, fy, fz, fp, fb, mb)
+        _push(el_ka[e2], el_ia[e2], el_arm[e2, 0], el_arm[e2, 1], el_arm[e2, 2], -fx, -fy, -fz, fp, fb, mb)
+        if e1 >= 0:
+            fx = -(My * u1z - Mz * u1y) * inv1
+            fy = -(Mz * u1x - Mx * u1z) * inv1
+            fz = -(Mx * u1y - My * u1x) * inv1
+            _push(el_kb[e1], el_ib[e1], el_arm[e1, 3], el_arm[e1, 4], el_arm[e1, 5], fx, fy, fz, fp, fb, mb)
+            _push(el_ka[e1], el_ia[e1], el_arm[e1, 0], el_arm[e1, 1], el_arm[e1, 2], -fx, -fy, -fz, fp, fb, mb)
+        else:
+            mb[b, 0] -= Mx
+            mb[b, 1] -= My
+            mb[b, 2] -= Mz
+
+
+@njit(cache=True, inline="always")
+def _capstan(mu, eA, eB, vs, eps, el_u, el_T):
+    """Ring friction on the slide (N): capstan limit T_low (e^(mu beta) - 1).
+
+    beta is the wrap angle between the rope's incoming and outgoing elements.
+    Coulomb-like, smoothed below eps (m/s) so the explicit step stays stable.
+    """
+    cosb = el_u[eA, 0] * el_u[eB, 0] + el_u[eA, 1] * el_u[eB, 1] + el_u[eA, 2] * el_u[eB, 2]
+    cosb = min(1.0, max(-1.0, cosb))
+    t_low = min(el_T[eA], el_T[eB])
+    limit = t_low * (np.exp(mu * np.arccos(cosb)) - 1.0)
+    return limit * vs / np.sqrt(vs * vs + eps * eps)
 
 
 @njit(cache=True)
@@ -215,7 +318,10 @@ def rhs(t, y, dy, m, work):
     o_F = o_vel + 3 * P
     o_ring = o_F + E
 
-    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel = work
+    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel, el_u, el_dv, el_len, el_T, el_arm = work
+    has_joints = m[34] != 0
+    ring_mu = m[42]
+    store = has_joints or m[44] != 0
 
     _fixed_points(t, reel_t, point_pos, fpos, fvel)
     for b in range(nb):
@@ -239,9 +345,9 @@ def rhs(t, y, dy, m, work):
         length = np.sqrt(dx * dx + dyy * dyy + dz * dz)
         Fm = y[o_F + e]
         tension = 0.0
+        inv = 1.0 / length
+        ux, uy, uz = dx * inv, dyy * inv, dz * inv
         if length > Le:
-            inv = 1.0 / length
-            ux, uy, uz = dx * inv, dyy * inv, dz * inv
             rate = ux * (uxb - uxa) + uy * (uyb - uya) + uz * (uzb - uza)
             invL = 1.0 / Le
             dy[o_F + e] = seg_kv[s] * invL * (rate - length * dLe * invL) - seg_relax[s] * Fm
@@ -250,7 +356,13 @@ def rhs(t, y, dy, m, work):
                 tension = 0.0
         else:
             dy[o_F + e] = 0.0  # slack: F_m is held at zero by ``project``
-            ux, uy, uz = 0.0, 0.0, 0.0
+        if store:
+            el_u[e, 0], el_u[e, 1], el_u[e, 2] = ux, uy, uz
+            el_dv[e, 0], el_dv[e, 1], el_dv[e, 2] = uxb - uxa, uyb - uya, uzb - uza
+            el_len[e] = length
+            el_T[e] = tension
+            el_arm[e, 0], el_arm[e, 1], el_arm[e, 2] = a0, a1, a2
+            el_arm[e, 3], el_arm[e, 4], el_arm[e, 5] = b0, b1, b2
         if el_side[e] == 1:
             sumA[seg_ring[s]] += tension + tension * tension / (2.0 * (seg_ks[s] + seg_kv[s]))
         elif el_side[e] == 2:
@@ -258,34 +370,11 @@ def rhs(t, y, dy, m, work):
         if tension == 0.0:
             continue
         fx, fy, fz = tension * ux, tension * uy, tension * uz
-        ka = el_ka[e]
-        if ka == KIND_PARTICLE:
-            i = el_ia[e]
-            fp[i, 0] += fx
-            fp[i, 1] += fy
-            fp[i, 2] += fz
-        elif ka == KIND_BODY:
-            b = el_ia[e]
-            fb[b, 0] += fx
-            fb[b, 1] += fy
-            fb[b, 2] += fz
-            mb[b, 0] += a1 * fz - a2 * fy
-            mb[b, 1] += a2 * fx - a0 * fz
-            mb[b, 2] += a0 * fy - a1 * fx
-        kb = el_kb[e]
-        if kb == KIND_PARTICLE:
-            i = el_ib[e]
-            fp[i, 0] -= fx
-            fp[i, 1] -= fy
-            fp[i, 2] -= fz
-        elif kb == KIND_BODY:
-            b = el_ib[e]
-            fb[b, 0] -= fx
-            fb[b, 1] -= fy
-            fb[b, 2] -= fz
-            mb[b, 0] -= b1 * fz - b2 * fy
-            mb[b, 1] -= b2 * fx - b0 * fz
-            mb[b, 2] -= b0 * fy - b1 * fx
+        _push(el_ka[e], el_ia[e], a0, a1, a2, fx, fy, fz, fp, fb, mb)
+        _push(el_kb[e], el_ib[e], b0, b1, b2, -fx, -fy, -fz, fp, fb, mb)
+
+    if has_joints:
+        _joint_moments(m, T, y, el_u, el_dv, el_len, el_T, el_arm, fp, fb, mb)
 
     # particles: lumped mass from the segment's current unstretched length
     for i in range(P):
@@ -344,8 +433,11 @@ def rhs(t, y, dy, m, work):
         mass = seg_rho[s] * Lseg[s] / 3.0 + ring_added_mass[rg]
         meanA = sumA[rg] / seg_nelA[s]
         meanB = sumB[rg] / (seg_nel[s] - seg_nelA[s])
+        friction = 0.0
+        if ring_mu[rg] > 0.0:
+            friction = _capstan(ring_mu[rg], m[40][rg], m[41][rg], vs, m[43], el_u, el_T)
         dy[o_ring + 2 * rg] = vs
-        dy[o_ring + 2 * rg + 1] = (meanA - meanB) / mass - relax_damping * vs
+        dy[o_ring + 2 * rg + 1] = (meanA - meanB - friction) / mass - relax_damping * vs
 
 
 @njit(cache=True)
@@ -358,7 +450,7 @@ def project(t, y, m, work):
     o_vel = o_part + 3 * P
     o_F = o_vel + 3 * P
     o_ring = o_F + E
-    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel = work
+    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel = work[:12]
     _fixed_points(t, m[27], m[29], fpos, fvel)
     for b in range(nb):
         _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
@@ -398,6 +490,11 @@ def make_work(m):
         np.zeros(max(R, 1)),
         np.zeros((max(m[29].shape[1], 1), 3)),
         np.zeros((max(m[29].shape[1], 1), 3)),
+        np.zeros((m[6].shape[0], 3)),
+        np.zeros((m[6].shape[0], 3)),
+        np.zeros(m[6].shape[0]),
+        np.zeros(m[6].shape[0]),
+        np.zeros((m[6].shape[0], 6)),
     )
 
 

@@ -173,6 +173,9 @@ KERNEL_FIELDS = (
     "ring_seg", "ring_added_mass",
     "reel_t", "reel_len", "point_pos", "relax_damping",
     "body_cda", "seg_cda", "air_density",
+    "has_joints", "joint_a", "joint_b", "joint_seg", "seg_bend_c", "seg_link_mu",
+    "ring_eA", "ring_eB", "ring_mu", "friction_speed_eps", "has_ring_friction",
+    "seg_link_r", "friction_omega_eps",
 )  # fmt: skip
 
 
@@ -289,6 +292,7 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         seg["npart"].append(max(n, 1))
         seg["rho"].append(rho)
 
+    joints = _joints(seg_nodes, seg_elements, seg_names)
     bodies = list(rig.bodies.values())
     I = np.array([b.inertia for b in bodies]).reshape(-1, 3, 3)
     E = len(el)
@@ -327,6 +331,19 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         "body_cda": np.zeros(len(bodies)),
         "seg_cda": np.zeros(len(seg_names)),
         "air_density": 1.2,
+        "has_joints": 0,
+        "joint_a": np.array([j[0] for j in joints], np.int64),
+        "joint_b": np.array([j[1] for j in joints], np.int64),
+        "joint_seg": np.array([j[2] for j in joints], np.int64),
+        "seg_bend_c": np.zeros(len(seg_names)),
+        "seg_link_mu": np.zeros(len(seg_names)),
+        "ring_eA": np.array([seg_elements[seg_names[s]].start + seg["nelA"][s] - 1 for s in ring_seg], np.int64),
+        "ring_eB": np.array([seg_elements[seg_names[s]].start + seg["nelA"][s] for s in ring_seg], np.int64),
+        "ring_mu": np.zeros(len(ring_seg)),
+        "friction_speed_eps": 0.05,
+        "has_ring_friction": 0,
+        "seg_link_r": np.zeros(len(seg_names)),
+        "friction_omega_eps": 0.2,
     }
     model = Model(
         rig=rig,
@@ -343,7 +360,29 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
     )
     for mechanism in physics:
         mechanism.apply(model)
+    arrays["has_joints"] = int(np.any(arrays["seg_bend_c"] > 0) or np.any(arrays["seg_link_mu"] > 0))
+    arrays["has_ring_friction"] = int(np.any(arrays["ring_mu"] > 0))
     return model
+
+
+def _joints(seg_nodes, seg_elements, seg_names):
+    """Rope joints: (first element or -(body+1), second element, segment).
+
+    Consecutive elements meeting at a particle, and a segment's end element
+    with the body it hangs from. Not across a ring: the rope slides there.
+    """
+    joints = []
+    for s, name in enumerate(seg_names):
+        nodes = seg_nodes[name]
+        e0 = seg_elements[name].start
+        for k in range(1, len(nodes) - 1):
+            if nodes[k][0] == KIND_PARTICLE:
+                joints.append((e0 + k - 1, e0 + k, s))
+        if nodes[0][0] == KIND_BODY:
+            joints.append((-(nodes[0][1] + 1), e0, s))
+        if nodes[-1][0] == KIND_BODY:
+            joints.append((-(nodes[-1][1] + 1), e0 + len(nodes) - 2, s))
+    return joints
 
 
 def rough_body_positions(rig, hoist_length, drag_length):

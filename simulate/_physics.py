@@ -61,42 +61,85 @@ def _apply_aero_drag(model, p):
     a["air_density"] = p["air_density"]
 
 
-def _not_yet(name):
-    def apply(model, p):
-        raise ValueError(f"mechanism {name!r} is not implemented in this version")
+def _segments(model, which, default_kind):
+    """Segments a joint mechanism acts on: ropes, chains, all, or one name."""
+    which = default_kind if which == "default" else which
+    if which == "all":
+        return list(range(len(model.seg_names)))
+    if which in ("ropes", "chains"):
+        suffix = which[:-1]
+        return [s for s, n in enumerate(model.seg_names) if n.endswith(suffix)]
+    if which in model.seg_names:
+        return [model.seg_names.index(which)]
+    raise ValueError(f"unknown segments {which!r} (ropes, chains, all, or a segment name)")
 
-    return apply
+
+def _apply_rope_bending_damping(model, p):
+    # Internal friction of a bent rope: a moment -c omega_rel at every joint
+    # (kernel: _joint_moments). Exponential (viscous) decay signature.
+    for s in _segments(model, p["segments"], "ropes"):
+        model.arrays["seg_bend_c"][s] = p["c"]
+
+
+def _apply_chain_link_friction(model, p):
+    # Links rolling on each other under tension T resist with a Coulomb
+    # moment mu T r_pin (kernel: _joint_moments): the tighter the chain, the
+    # more it resists bending. Linear (Coulomb) decay signature.
+    for s in _segments(model, p["segments"], "chains"):
+        model.arrays["seg_link_mu"][s] = p["mu"]
+        model.arrays["seg_link_r"][s] = p["pin_radius"]
+    model.arrays["friction_omega_eps"] = p["omega_eps"]
+
+
+def _apply_pulley_friction(model, p):
+    # Capstan friction where the rope slides through a ring (kernel:
+    # _capstan): up to T_low (e^(mu beta) - 1) against the slide.
+    for r in _rings(model, p["pulley"]):
+        model.arrays["ring_mu"][r] = p["mu"]
+    model.arrays["friction_speed_eps"] = p["speed_eps"]
 
 
 MECHANISMS = {
     "chain_link_friction": {
         "main": "mu",
-        "defaults": {"mu": 0.3},
-        "doc": "inter-link friction coefficient; resisting bending moment grows with chain tension",
-        "apply": _not_yet("chain_link_friction"),
+        "defaults": {"mu": 0.3, "pin_radius": 0.00475, "omega_eps": 2.0, "segments": "default"},
+        "doc": "inter-link friction coefficient (-); moment mu T pin_radius (m) at every chain joint, "
+        "Coulomb above omega_eps (rad/s) of relative link rotation and viscous below it (links this "
+        "light lock hard: a smaller omega_eps is truer but needs a much smaller step); plausible "
+        "0.05-0.6 for steel links",
+        "range": (0.01, 1.0),
+        "apply": _apply_chain_link_friction,
     },
     "pulley_friction": {
         "main": "mu",
-        "defaults": {"mu": 0.1, "pulley": "all"},
-        "doc": "ring friction coefficient, capstan-like",
-        "apply": _not_yet("pulley_friction"),
+        "defaults": {"mu": 0.1, "pulley": "all", "speed_eps": 0.05},
+        "doc": "ring friction coefficient (-), capstan T_low (e^(mu wrap) - 1), smoothed below "
+        "speed_eps (m/s); pulley boom, hoist_cluster or all; plausible 0.02-0.3",
+        "range": (0.005, 0.5),
+        "apply": _apply_pulley_friction,
     },
     "pulley_inertia": {
         "main": "inertia",
         "defaults": {"inertia": 1e-4, "radius": 0.05, "pulley": "all"},
-        "doc": "sheave inertia (kg m^2) about its axle, sheave radius (m)",
+        "doc": "sheave inertia (kg m^2) about its axle, sheave radius (m); adds inertia / radius^2 "
+        "to the rope's slide; plausible 1e-5-1e-3 kg m^2 for this rig's sheaves",
+        "range": (1e-6, 1e-2),
         "apply": _apply_pulley_inertia,
     },
     "rope_bending_damping": {
         "main": "c",
-        "defaults": {"c": 0.01},
-        "doc": "bending damping per joint (N m s/rad)",
-        "apply": _not_yet("rope_bending_damping"),
+        "defaults": {"c": 0.01, "segments": "default"},
+        "doc": "bending damping per joint (N m s/rad) on ropes (segments=ropes, chains, all or a "
+        "name); plausible 1e-4-0.1 for this rig's ropes",
+        "range": (1e-5, 1.0),
+        "apply": _apply_rope_bending_damping,
     },
     "aero_drag": {
         "main": "cd",
         "defaults": {"cd": 1.0, "air_density": 1.2},
-        "doc": "quadratic drag coefficient; air density (kg/m^3)",
+        "doc": "quadratic drag coefficient (-); air density (kg/m^3); plausible 0.5-2 in air "
+        "(larger values stand in for a denser fluid)",
+        "range": (0.1, 50.0),
         "apply": _apply_aero_drag,
     },
 }

@@ -249,7 +249,7 @@ def simulate(
     else:
         y0, residual = np.array(initial_state, float), float("nan")
     out_dt = 1.0 / rate_hz
-    step = stable_time_step(model) if dt is None else float(dt)
+    step = stable_time_step(model, state=y0) if dt is None else float(dt)
     per_record = max(1, int(np.ceil(out_dt / step - 1e-9)))
     step = out_dt / per_record
     n_records = int(round(duration * rate_hz))

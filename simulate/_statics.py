@@ -128,7 +128,7 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     m = tuple(arrays[k] for k in fields)
     work = _kernel.make_work(m)
     y = initial_state(model, t) if y0 is None else np.array(y0, float)
-    dt = stable_time_step(model)
+    dt = stable_time_step(model, state=y)
     chunk = int(np.ceil(1.0 / dt))
     speed_index = np.r_[[12 * b + k for b in range(model.n_bodies) for k in (3, 4, 5)], np.arange(model.o_vel, model.o_force)].astype(int)
     for _ in range(int(np.ceil(max_relax_time))):
@@ -295,14 +295,15 @@ def _residual_scale(model):
     return np.array(scale)
 
 
-def stable_time_step(model, safety=0.75):
+def stable_time_step(model, safety=0.75, state=None):
     """Largest RK4 step (s) that keeps every axial mode stable.
 
     A Gershgorin bound on the highest eigenvalue of M^-1 K, row by row:
     particles and body translation (2 sum k / m) and body rotation about each
     body axis i (2 sum k (|r|^2 - r_i^2) / I_ii), with the instantaneous
     stiffness Ks + Kv at the shortest element lengths the maneuver reaches
-    (ring sides at three quarters of an even share), against RK4's stability
+    (ring sides at three quarters of their share in ``state``, or of an even
+    share without one), against RK4's stability
     limit of 2 sqrt(2) on the imaginary axis. The bound leaves out the
     transverse (tension) stiffness and ring sides shrinking below their
     share, so the default safety factor is measured, not assumed: at the
@@ -311,11 +312,11 @@ def stable_time_step(model, safety=0.75):
     """
     a = model.arrays
     Lmin = model.segment_lengths(a["reel_t"]).min(axis=1)
+    rest = _shortest_rest_lengths(model, Lmin, state)
     k_el = np.empty(model.n_elements)
     for e in range(model.n_elements):
         s = a["el_seg"][e]
-        Le = Lmin[s] / a["seg_nel"][s] * (0.75 if a["el_side"][e] else 1.0)
-        k_el[e] = (a["seg_ks"][s] + a["seg_kv"][s]) / Le
+        k_el[e] = (a["seg_ks"][s] + a["seg_kv"][s]) / rest[e]
     k_part = np.zeros(model.n_particles)
     k_body = np.zeros(model.n_bodies)
     k_rot = np.zeros((model.n_bodies, 3))
@@ -334,4 +335,74 @@ def stable_time_step(model, safety=0.75):
         np.max(2.0 * k_body / a["body_mass"], initial=0.0),
         np.max(2.0 * k_rot / I_axes, initial=0.0),
     )
-    return safety * 2.0 * np.sqrt(2.0) / np.sqrt(lam)
+    dt = safety * 2.0 * np.sqrt(2.0) / np.sqrt(lam)
+    rate = max(_joint_damping_rate(model, rest, m_part, I_axes), _ring_friction_rate(model))
+    if rate > 0:  # RK4's real-axis limit is 2.785
+        dt = min(dt, safety * 2.785 / rate)
+    return dt
+
+
+def _rig_weight(model):
+    a = model.arrays
+    return a["g"] * (a["body_mass"].sum() + (a["seg_rho"] * model.segment_lengths(a["reel_t"]).max(axis=1)).sum())
+
+
+def _ring_friction_rate(model):
+    """Decay rate (1/s) of a ring's smoothed friction: limit / (eps m_s), limit at the rig's weight."""
+    a = model.arrays
+    if not a["has_ring_friction"]:
+        return 0.0
+    Lmin = model.segment_lengths(a["reel_t"]).min(axis=1)
+    rate = 0.0
+    for r, s in enumerate(a["ring_seg"]):
+        m_s = a["seg_rho"][s] * Lmin[s] / 3.0 + a["ring_added_mass"][r]
+        limit = _rig_weight(model) * (np.exp(a["ring_mu"][r] * np.pi) - 1.0)
+        rate = max(rate, limit / (a["friction_speed_eps"] * m_s))
+    return rate
+
+
+def _shortest_rest_lengths(model, Lmin, state):
+    """Each element's rest length at the maneuver's shortest, ring sides at 3/4 of their share."""
+    a = model.arrays
+    rest = np.empty(model.n_elements)
+    for e in range(model.n_elements):
+        s = a["el_seg"][e]
+        side = a["el_side"][e]
+        if side == 0:
+            rest[e] = Lmin[s] / a["seg_nel"][s]
+            continue
+        nA = a["seg_nelA"][s]
+        if state is None:
+            rest[e] = 0.75 * Lmin[s] / a["seg_nel"][s]
+        else:
+            uA = state[model.o_ring + 2 * a["seg_ring"][s]]
+            share = uA / nA if side == 1 else (Lmin[s] - uA) / (a["seg_nel"][s] - nA)
+            rest[e] = 0.75 * min(share, Lmin[s] / a["seg_nel"][s])
+    return rest
+
+
+def _joint_damping_rate(model, rest, m_part, I_axes):
+    """Largest decay rate (1/s) the joint mechanisms impose, a Gershgorin bound.
+
+    A joint damping c (or chain friction's smoothed gain mu r T / eps, with T
+    at most the rig's weight) on an element of length L between
+    masses m acts at about c / (m L^2); at a body, c / I. Along a rope the
+    joint damping is a fourth difference (stencil 1, -4, 6, -4, 1), whose
+    row sum bounds the rate at 16 c / (m L^2).
+    """
+    a = model.arrays
+    if not a["has_joints"]:
+        return 0.0
+    gain = a["seg_bend_c"] + a["seg_link_mu"] * a["seg_link_r"] * _rig_weight(model) / a["friction_omega_eps"]
+    rate = 0.0
+    for e in range(model.n_elements):
+        s = a["el_seg"][e]
+        if gain[s] == 0.0:
+            continue
+        Le = rest[e]
+        for kind, idx in ((a["el_ka"][e], a["el_ia"][e]), (a["el_kb"][e], a["el_ib"][e])):
+            if kind == KIND_PARTICLE:
+                rate = max(rate, 16.0 * gain[s] / (m_part[idx] * Le**2))
+            elif kind == _kernel.KIND_BODY:
+                rate = max(rate, 4.0 * gain[s] / I_axes[idx].min())
+    return rate

@@ -105,6 +105,8 @@ def test_summary_page_numbers(case, report):
     rms = 0.21 * math.sqrt(np.mean(np.exp(-((T - 6.2) / 0.1) ** 2)))
     assert f"{rms:.3g} m/s" in summary
     assert "RMS <= 20 mm" in summary and "RMS <= 3 deg" in summary
+    assert "Spreader bar x, mean predicted - measured: +0.0 mm" in summary
+    assert "about 51 mm" in summary
 
 
 def test_missing_channel_is_marked_not_silently_empty(report):
