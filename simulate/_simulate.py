@@ -244,7 +244,10 @@ def simulate(
     model = assemble(rig, maneuver, discretization, physics=physics, dissipation=dissipation)
     t0 = float(maneuver.time[0])
     if initial_state is None:
-        eq = solve_statics(model, t0)
+        # Every mechanism acts only on motion (or is modelled so), so the
+        # rest pose is the nominal model's; its statics are also cheaper.
+        nominal = assemble(rig, maneuver, discretization, dissipation=dissipation) if physics else model
+        eq = solve_statics(nominal, t0)
         y0, residual = eq.state, eq.residual
     else:
         y0, residual = np.array(initial_state, float), float("nan")

@@ -1,0 +1,643 @@
+"""``dragline diagnose``: what physics does the nominal model leave out?
+
+The four steps of issue 6, on one recording:
+
+1. **Locate** (``_locate``): the nominal simulation of the recorded maneuver
+   against the recording, channel by channel and window by window (the
+   maneuver's phases, the free decay), in units of the measurement noise
+   estimated from the recording itself; the free decay's frequency,
+   damping and envelope law, measured against simulated.
+2. **Rank** every mechanism in ``dragline.simulate.MECHANISMS`` by how well
+   its signature, on a grid of its main parameter, fits the mismatch.
+3. **Fit** each plausible candidate through the simulator and score it on
+   held-out data (``_hypotheses``: 2-fold cross-validation over alternating
+   blocks).
+4. **Decide**: a mechanism only when its held-out improvement beats what
+   noise alone gives (a surrogate null test); "none" when the nominal model
+   fits within noise; "unexplained" when a structured mismatch remains that
+   no candidate explains, when two candidates are indistinguishable, or
+   when the geometry itself is off.
+
+Only the motion is read: from a session, the calibration takes and the
+trial's centroids (``capture.mcap``) and the reel table; nothing else the
+directory holds is opened. Bad input (a different rig's markers, a reel
+table that the recorded rope lengths do not follow, a recording without a
+free decay) raises ``ValueError`` with one line.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time as _time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..simulate import (
+    ROPE_CHANNELS,
+    Maneuver,
+    dig_maneuver,
+    load_rig,
+    parse_physics,
+    read_maneuver_csv,
+    simulate,
+)
+from ._align import MAX_OFFSET, check_table, estimate_time_offset, read_trajectory_table, reels_stop_time
+from ._compare import channel_kind
+from ._decay import free_decay
+from ._hypotheses import (
+    affordable_range,
+    candidate_list,
+    decide,
+    fit_candidates,
+    null_threshold,
+    profile_uncertainty,
+    score_candidate,
+    signature_match,
+    unavailable_reason,
+    autocorrelation_time,
+    Problem,
+    DECAY_WEIGHT,
+    BLOCK_S,
+    NULL_QUANTILE,
+    NULL_SURROGATES,
+    MIN_IMPROVEMENT,
+)
+from ._locate import DYNAMIC_CHANNELS, LOWPASS_S, locate_mismatch, low_pass, noise_level, structure_threshold, time_windows
+
+__all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json", "write_diagnosis_report"]
+
+SCHEMA = "dragline.diagnosis/1"
+# The reel table must explain the recorded rope lengths: after aligning the
+# clocks, the measured length may differ from the nominal simulation's
+# (stretch included) by this much RMS about its mean (m) ...
+ROPE_TOLERANCE = 0.02
+# ... and by this much on average (m; cubic-fit and marker-offset bias).
+ROPE_BIAS_TOLERANCE = 0.025
+# The rope lengths must move at all (m) for the clocks to be aligned.
+MIN_REEL_TRAVEL = 0.05
+# A free decay shorter than this after the reels stop is too short (s): over
+# one swing (0.6 Hz) plus the low-pass window.
+MIN_DECAY_S = 2.0
+# Channels needed at all: a table without the bucket is not this rig.
+REQUIRED_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch")
+# Constant offsets beyond these mean the geometry or calibration differs.
+OFFSET_LIMIT = {"position": 0.010, "angle": math.radians(2.0)}
+FREE_DECAY_KEYS = ("frequency_hz", "damping_ratio", "amplitude", "shape", "confidence", "decay_rate",
+                   "decrement_per_cycle", "quadratic_coefficient")
+DECAY_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch", "drag_cluster.x", "spreader_bar.pitch",
+                  "hoist_cluster.pitch")
+MAX_MISMATCH_ENTRIES = 30
+
+
+@dataclass
+class Diagnosis:
+    """A diagnosis: the JSON document and the series the report draws.
+
+    Attributes
+    ----------
+    doc : dict
+        JSON-ready (``write_diagnosis_json``), see :func:`diagnose`.
+    time : ndarray (n,)
+        Time base (s, simulation clock).
+    channels : list of str
+    measured, nominal : ndarray (n, c)
+        SI; the nominal simulation with the nominal model's nuisance
+        (offsets, clock shift) applied, so that ``measured - nominal`` is
+        the residual that was judged.
+    fitted : dict
+        Hypothesis name -> (n, c) simulation with its nuisance applied.
+    """
+
+    doc: dict
+    time: np.ndarray
+    channels: list
+    measured: np.ndarray
+    nominal: np.ndarray
+    fitted: dict = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------- input
+
+def _read_maneuver_arg(maneuver):
+    if maneuver is None or isinstance(maneuver, Maneuver):
+        return maneuver
+    return dig_maneuver() if maneuver == "dig" else read_maneuver_csv(maneuver)
+
+
+def _session_maneuver(session, path):
+    cols = session.maneuver or {}
+    if not all(k in cols for k in ("time", "hoist_length", "drag_length")):
+        raise ValueError(f"{path}: the session holds no maneuver table; pass --maneuver dig|FILE.csv")
+    points = {}
+    for key in cols:
+        if key.endswith(".x") and key[:-2] + ".y" in cols and key[:-2] + ".z" in cols:
+            name = key[:-2]
+            points[name] = np.column_stack([cols[f"{name}.{a}"] for a in "xyz"])
+    return Maneuver(cols["time"], cols["hoist_length"], cols["drag_length"], points)
+
+
+def _is_trajectory_table(path):
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        head = fh.readline()
+    names = [c.strip() for c in head.split(",")]
+    return "time" in names and any("." in n for n in names)
+
+
+def load_recording(path, maneuver=None, rig=None, calibration=None, progress=None):
+    """The measured trajectory table and the maneuver of a recording.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A session directory (``capture.mcap`` or, without one,
+        ``markers.csv``), a ``.mcap`` session file, a VICON-style marker CSV,
+        or a measured trajectory table (CSV with ``time`` and
+        ``<body>.<quantity>`` columns).
+    maneuver : Maneuver, "dig", path or None
+        The reel table; by default the session's (``maneuver.csv`` in the
+        directory, else the MCAP's session info), for a CSV a
+        ``maneuver.csv`` beside it, else the dig maneuver.
+    rig : Rig, optional
+    calibration : path, optional
+        ``cameras.json`` for a session; by default the one in the session
+        directory, else the cameras are calibrated from the session's
+        L-frame and wand takes.
+    progress : callable, optional
+        Receives one-line notes.
+
+    Returns
+    -------
+    measured : pandas.DataFrame
+    maneuver : Maneuver
+    source : dict
+        What was read and how (JSON-ready).
+
+    Raises
+    ------
+    ValueError
+        Unreadable input, a different rig's markers, no maneuver.
+    """
+    from ..capture._mcap_io import read_session  # noqa: PLC0415 - heavy, only for sessions
+
+    note = progress or (lambda msg: None)
+    path = os.fspath(path)
+    rig = load_rig() if rig is None else rig
+    maneuver = _read_maneuver_arg(maneuver)
+    source = {"input": path}
+    folder = None
+    if os.path.isdir(path):
+        folder = path
+        if os.path.isfile(os.path.join(path, "capture.mcap")):
+            kind, file = "session", os.path.join(path, "capture.mcap")
+        elif os.path.isfile(os.path.join(path, "markers.csv")):
+            kind, file = "vicon", os.path.join(path, "markers.csv")
+        else:
+            raise ValueError(f"{path}: the directory holds neither capture.mcap nor markers.csv")
+    elif os.path.isfile(path):
+        ext = os.path.splitext(path)[1].lower()
+        if ext == ".mcap":
+            kind, file = "session", path
+        elif ext == ".csv":
+            kind, file = ("table" if _is_trajectory_table(path) else "vicon"), path
+        else:
+            raise ValueError(f"{path}: expected a session directory, a .mcap file or a .csv file")
+        folder = os.path.dirname(os.path.abspath(path))
+    else:
+        raise ValueError(f"{path}: no such file or directory")
+    source["kind"] = kind
+    beside = os.path.join(folder, "maneuver.csv") if folder else None
+
+    if kind == "session":
+        session, report = read_session(file)
+        if report.get("truncated"):
+            note(f"{file} was cut short; lost {report.get('lost')}")
+        if maneuver is None:
+            if beside and os.path.isfile(beside) and os.path.dirname(os.path.abspath(file)) == os.path.abspath(folder):
+                maneuver, source["maneuver"] = read_maneuver_csv(beside), beside
+            else:
+                maneuver, source["maneuver"] = _session_maneuver(session, file), f"{file} (session info)"
+        cameras, source["calibration"] = _session_cameras(session, file, folder, calibration, note)
+        from ..reconstruct._pipeline import reconstruct_session  # noqa: PLC0415
+
+        try:
+            table, _, _, _ = reconstruct_session(session, cameras, rig=rig)
+        except ValueError as exc:
+            raise ValueError(f"{file}: {exc}") from None
+    elif kind == "vicon":
+        from ..reconstruct._pipeline import reconstruct_vicon_csv  # noqa: PLC0415
+
+        table, _ = reconstruct_vicon_csv(file, rig=rig)
+    else:
+        table = read_trajectory_table(file, "measured")
+    if maneuver is None:
+        if beside and os.path.isfile(beside):
+            maneuver, source["maneuver"] = read_maneuver_csv(beside), beside
+        else:
+            maneuver, source["maneuver"] = dig_maneuver(), "dig (default; no maneuver table came with the input)"
+            note("no maneuver table came with the input; using the dig maneuver (checked against the rope lengths)")
+    source.setdefault("maneuver", "given")
+    return table, maneuver, source
+
+
+def _session_cameras(session, file, folder, calibration, note):
+    from ..capture import calibrate  # noqa: PLC0415
+    from ..capture._cameras import load_cameras  # noqa: PLC0415
+
+    if calibration is None and folder and os.path.isfile(os.path.join(folder, "cameras.json")):
+        calibration = os.path.join(folder, "cameras.json")
+    if calibration is not None:
+        if not os.path.isfile(calibration):
+            raise ValueError(f"{calibration}: no such calibration file")
+        return load_cameras(calibration), calibration
+    if session.lframe is None or session.wand is None or session.wand_length is None:
+        raise ValueError(f"{file}: no calibration given and the session lacks the L-frame or wand take")
+    note("calibrating the cameras from the session's L-frame and wand takes")
+    try:
+        cameras, _ = calibrate(session.lframe, session.wand, session.wand_length, session.lframe_points,
+                               session.image_size, session.nominal_focal_px, names=session.camera_names)
+    except ValueError as exc:
+        raise ValueError(f"{file}: calibration failed: {exc}") from None
+    return cameras, "calibrated from the session's L-frame and wand takes"
+
+
+# ---------------------------------------------------------------- checks
+
+def _check_channels(measured):
+    missing = [c for c in REQUIRED_CHANNELS if c not in measured.columns
+               or np.isfinite(np.asarray(measured[c], float)).mean() < 0.5]
+    if missing:
+        raise ValueError(f"the recording lacks {', '.join(missing)} (or they are mostly missing): "
+                         "not a recording of this rig's bucket")
+    channels = [c for c in DYNAMIC_CHANNELS if c in measured.columns
+                and np.isfinite(np.asarray(measured[c], float)).mean() >= 0.5]
+    return channels
+
+
+def check_maneuver(measured, estimate):
+    """Raise ValueError unless the reel table explains the recorded rope lengths.
+
+    Parameters
+    ----------
+    measured : pandas.DataFrame
+    estimate : dict
+        ``estimate_time_offset(measured, nominal_table)``.
+    """
+    ropes = [c for c in ROPE_CHANNELS if c in measured.columns and np.isfinite(np.asarray(measured[c], float)).any()]
+    if not ropes:
+        raise ValueError("the recording has no rope lengths; cannot check it against the maneuver table")
+    travel = max(np.nanmax(np.asarray(measured[c], float)) - np.nanmin(np.asarray(measured[c], float)) for c in ropes)
+    if travel < MIN_REEL_TRAVEL:
+        raise ValueError(f"the recorded rope lengths change by {1000 * travel:.0f} mm at most: the recording "
+                         "holds no reeling, so its clock cannot be tied to the maneuver table")
+    if not estimate["estimated"]:
+        raise ValueError(f"cannot align the recording with the maneuver table: {estimate['reason']}")
+    if estimate["at_search_edge"]:
+        raise ValueError("the maneuver table does not match the recorded rope lengths: the best clock offset "
+                         f"lies at the search limit ({estimate['offset']:+.2f} s)")
+    for rope, r in estimate["ropes"].items():
+        if r["residual_rms"] > ROPE_TOLERANCE:
+            raise ValueError(
+                f"the maneuver table does not match the recorded rope lengths: {rope} differs from what the "
+                f"table gives by {1000 * r['residual_rms']:.0f} mm RMS after aligning the clocks "
+                f"(tolerance {1000 * ROPE_TOLERANCE:.0f} mm allows for rope stretch)")
+        if abs(r["bias"]) > ROPE_BIAS_TOLERANCE:
+            raise ValueError(
+                f"the maneuver table does not match the recorded rope lengths: {rope} is "
+                f"{1000 * r['bias']:+.0f} mm longer on average than the table gives "
+                f"(tolerance {1000 * ROPE_BIAS_TOLERANCE:.0f} mm)")
+
+
+# ---------------------------------------------------------------- diagnosis
+
+def _decay_entry(time, values, t_stop):
+    try:
+        res = free_decay(time, values, t_stop)
+    except ValueError as exc:
+        return {"status": "missing", "reason": str(exc)}
+    out = {"status": "ok"}
+    out.update({k: res[k] for k in FREE_DECAY_KEYS})
+    return out
+
+
+def _free_decay_section(time, channels, measured, nominal, fitted, fitted_name, t_stop):
+    out = {"t_start": float(t_stop), "t_end": float(time[-1]), "fitted_model": fitted_name, "channels": {}}
+    for ch in DECAY_CHANNELS:
+        if ch not in channels:
+            continue
+        j = channels.index(ch)
+        entry = {"measured": _decay_entry(time, measured[:, j], t_stop),
+                 "nominal": _decay_entry(time, nominal[:, j], t_stop)}
+        if fitted is not None:
+            entry["fitted"] = _decay_entry(time, fitted[:, j], t_stop)
+        m, s = entry["measured"], entry["nominal"]
+        if m.get("frequency_hz") and s.get("frequency_hz"):
+            entry["frequency_shift"] = (s["frequency_hz"] - m["frequency_hz"]) / m["frequency_hz"]
+        if m.get("damping_ratio") is not None and s.get("damping_ratio"):
+            entry["damping_ratio_ratio"] = m["damping_ratio"] / s["damping_ratio"]
+        out["channels"][ch] = entry
+    return out
+
+
+def _structure_energy(residual, channels, sigma, width):
+    """Sum of squared low-passed residuals, each channel over its structure threshold."""
+    lp = low_pass(residual, width)
+    thr = np.array([structure_threshold(ch, s, width) for ch, s in zip(channels, sigma)])
+    return float(np.nansum((lp / thr) ** 2))
+
+
+def _json_number(x):
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candidates=None, workers=2,
+             seed=0, source=None, progress=None):
+    """Diagnose a measured trajectory table against the nominal model.
+
+    Parameters
+    ----------
+    measured : pandas.DataFrame
+        Measured trajectory table (DESIGN 3), any clock: aligned to the
+        simulation from the rope lengths.
+    maneuver : Maneuver, optional
+        The reel table of the recording (dig maneuver by default).
+    rig : Rig, optional
+    discretization : str or dict
+        Of every simulation (``baseline`` by default).
+    candidates : sequence of str, optional
+        Mechanism names; every one in ``MECHANISMS`` by default.
+    workers : int
+        Processes for the simulations.
+    seed : int
+        Seeds the null test's surrogates.
+    source : dict, optional
+        Where the table came from (``load_recording``), copied to the JSON.
+    progress : callable, optional
+        Receives one-line progress notes.
+
+    Returns
+    -------
+    Diagnosis
+        ``doc`` holds: ``schema``; ``verdict`` (a mechanism name, "none" or
+        "unexplained"); ``reason``; ``mismatch`` (significant channel-window
+        entries of the nominal model, largest ``score`` first: ``channel``,
+        ``window``, ``t_start``, ``t_end``, ``score`` (structured RMS over
+        its threshold), ``rms``, ``frequency_hz``, ...); ``mismatch_after``
+        (the same for the verdict's model); ``hypotheses`` ranked by held-out
+        improvement, best first: ``name``, ``parameters`` (DESIGN 7 units),
+        ``main_parameter``, ``uncertainty``, ``rms_before`` and
+        ``rms_after`` (held-out RMS residual in units of the measurement
+        noise, 1 = noise), ``improvement`` (held-out chi2 drop),
+        ``threshold``, ``score`` (improvement / threshold), ``significant``,
+        ``signature_match``, ``explained_fraction``, ``rms_channels`` (SI,
+        all data, before/after); ``skipped`` (candidates the simulator
+        cannot run); ``free_decay`` (measured, nominal and fitted frequency,
+        damping, envelope per channel); ``null_test``; ``channels`` (noise,
+        offset per channel); ``alignment``; ``settings``; ``timing``.
+
+    Raises
+    ------
+    ValueError
+        A table of another rig, a maneuver the rope lengths do not follow,
+        no free decay.
+    """
+    started = _time.perf_counter()
+    note = progress or (lambda msg: None)
+    rig = load_rig() if rig is None else rig
+    maneuver = dig_maneuver() if maneuver is None else maneuver
+    check_table(measured, "measured table")
+    channels = _check_channels(measured)
+    t_meas = np.asarray(measured["time"], float)
+    step = float(np.median(np.diff(t_meas)))
+    if np.max(np.abs(np.diff(t_meas) - step)) > 0.01 * step:
+        raise ValueError("the measured table's time is not uniformly sampled")
+    rate = round(1.0 / step, 6)
+    t0 = float(maneuver.time[0])
+
+    # Nominal run, long enough for any clock offset searched.
+    record = float(t_meas[-1] - t_meas[0])
+    note("simulating the nominal model")
+    nominal_run = simulate(rig, maneuver, discretization, [], duration=record + MAX_OFFSET, rate_hz=rate)
+    nominal_table = nominal_run.table
+    estimate = estimate_time_offset(measured, nominal_table)
+    check_maneuver(measured, estimate)
+    offset = float(estimate["offset"])
+    t_al = t_meas - offset
+    keep = (t_al >= t0 - 1e-9) & (t_al <= float(nominal_run.time[-1]) + 1e-9)
+    time = t_al[keep]
+    if time.size < 16:
+        raise ValueError("the recording does not overlap the maneuver in time")
+    M = np.column_stack([np.asarray(measured[c], float)[keep] for c in channels])
+    t_stop, stop_method = reels_stop_time(measured, nominal_table, offset)
+    if t_stop is None:
+        raise ValueError("cannot tell when the reels stop; the free decay cannot be found")
+    if time[-1] - t_stop < MIN_DECAY_S:
+        raise ValueError(f"the recording ends {max(time[-1] - t_stop, 0.0):.2f} s after the reels stop; a diagnosis "
+                         f"needs a free decay of at least {MIN_DECAY_S:g} s (more than one swing)")
+    duration = float(time[-1] - t0) + 1.0 / rate
+    sigma = np.array([noise_level(M[:, j], channel_kind(c)) for j, c in enumerate(channels)])
+    problem = Problem(time, M, sigma, t_stop)
+    ctx = {"rig": rig, "maneuver": maneuver, "discretization": discretization, "duration": duration,
+           "rate_hz": rate, "initial_state": nominal_run.states[0], "time": time, "channels": channels}
+    nominal_sim = np.column_stack([np.interp(time, nominal_run.time, np.asarray(nominal_table[c], float))
+                                   for c in channels])
+
+    # 1. Locate.
+    dt = float(time[1] - time[0])
+    width = max(3, int(round(LOWPASS_S / dt)) | 1)
+    windows = time_windows(maneuver, t_stop, float(time[-1]))
+    nominal_eval = problem.evaluate(nominal_sim)
+    r0 = problem.residual(nominal_sim, nominal_eval["nuisance"])
+    located = locate_mismatch(time, r0, channels, sigma, windows)
+    structured_before = [e for e in located if e["significant"]]
+    b0, shift0 = nominal_eval["nuisance"]
+    offsets = {c: float(b) for c, b in zip(channels, b0)}
+    too_far = [c for c in channels if abs(offsets[c]) > OFFSET_LIMIT[channel_kind(c)]]
+    offsets_note = None
+    if too_far:
+        offsets_note = ("constant offsets beyond what calibration explains on " + ", ".join(
+            f"{c} ({offsets[c]:+.3g})" for c in too_far) + ": the rig geometry or the calibration differs from "
+            "the model, so no dynamic mechanism can be trusted")
+
+    # 2-3. Rank and fit.
+    cands = candidate_list(candidates)
+    skipped, runnable = [], []
+    for c in cands:
+        why = unavailable_reason(c, rig, maneuver, discretization)
+        if why:
+            skipped.append({"name": c["name"], "reason": why})
+            continue
+        c["searched"] = affordable_range(c, rig, maneuver, discretization)
+        runnable.append(c)
+    note(f"fitting {len(runnable)} candidate mechanisms ({', '.join(c['name'] for c in runnable)})")
+    points = fit_candidates(problem, ctx, runnable, nominal_sim, workers=workers, progress=note)
+    scored = {c["name"]: score_candidate(problem, c, points[c["name"]]) for c in runnable}
+
+    # 4. Null test: surrogates of the best model's residual.
+    best_name = min(scored, key=lambda n: scored[n]["evaluation"]["full"]) if scored else None
+    best_res = r0 if best_name is None or scored[best_name]["value"] == 0 else problem.residual(
+        scored[best_name]["sim"], scored[best_name]["evaluation"]["nuisance"])
+    signatures = [s["signature_sim"] - nominal_sim for s in scored.values() if s["signature_sim"] is not None]
+    threshold, q = null_threshold(problem, best_res, signatures, seed=seed)
+    z = np.where(problem.valid, best_res, 0.0) / sigma
+    tau = autocorrelation_time(z)
+    chi_min = min([s["evaluation"]["full"] for s in scored.values()] + [nominal_eval["full"]])
+    kappa = max(1.0, chi_min / problem.n_weighted) * float(np.average(tau, weights=(z**2).sum(0) + 1e-12))
+
+    e_before = _structure_energy(r0, channels, sigma, width)
+    hypotheses, fitted_series, residuals = [], {}, {}
+    for c in runnable:
+        s = scored[c["name"]]
+        main = c["main"]
+        value = s["value"]
+        params = dict(parse_physics(c["name"]).parameters)
+        params[main] = value
+        if s["value"] > 0:
+            res = problem.residual(s["sim"], s["evaluation"]["nuisance"])
+            frac = 1.0 - _structure_energy(res, channels, sigma, width) / e_before if e_before > 0 else 0.0
+            sig_match = signature_match(problem, r0, s["sim"] - nominal_sim)
+            residuals[c["name"]] = res
+            fitted_series[c["name"]] = M - res
+        else:
+            frac, sig_match = 0.0, 0.0
+        sx = profile_uncertainty(s["profile"], value, kappa)
+        fold_x = [math.log(v) for v in s["fold_values"] if v > 0]
+        spread = abs(fold_x[0] - fold_x[1]) / 2.0 if len(fold_x) == 2 else None
+        candidates_sx = [v for v in (sx, spread) if v is not None]
+        stated = max(candidates_sx) if candidates_sx else None
+        uncertainty = {
+            "parameter": main,
+            "std": _json_number(value * stated) if stated is not None and value > 0 else None,
+            "relative": _json_number(stated),
+            "interval_68": ([value * math.exp(-stated), value * math.exp(stated)]
+                            if stated is not None and value > 0 else None),
+            "profile_relative": _json_number(sx),
+            "fold_values": s["fold_values"],
+            "method": "larger of the chi2(ln p) profile curvature (scaled by the residual's dispersion and "
+                      "autocorrelation) and half the spread of the two folds' estimates",
+        }
+        rms_ch = {}
+        for j, ch in enumerate(channels):
+            before = r0[:, j]
+            after = residuals[c["name"]][:, j] if c["name"] in residuals else before
+            rms_ch[ch] = {"before": float(np.sqrt(np.nanmean(before**2))),
+                          "after": float(np.sqrt(np.nanmean(after**2)))}
+        n_w = problem.n_weighted
+        hypotheses.append({
+            "name": c["name"],
+            "main_parameter": main,
+            "parameters": params,
+            "uncertainty": uncertainty,
+            "range": list(c["range"]),
+            "searched_range": list(c["searched"]),
+            "rms_before": math.sqrt(s["heldout_before"] / n_w),
+            "rms_after": math.sqrt(s["heldout_after"] / n_w),
+            "improvement": s["improvement"],
+            "threshold": threshold,
+            "score": s["improvement"] / threshold,
+            "significant": bool(s["improvement"] > threshold and value > 0),
+            "signature_match": sig_match,
+            "explained_fraction": frac,
+            "at_bound": s["at_bound"],
+            "time_shift_s": float(s["evaluation"]["nuisance"][1]),
+            "n_simulations": s["n_simulations"],
+            "n_failed": s["n_failed"],
+            "rms_channels": rms_ch,
+            "profile": [{"value": v, "chi2": ch} for v, ch in s["profile"]],
+        })
+    hypotheses.sort(key=lambda h: -h["improvement"])
+    for k, h in enumerate(sorted(hypotheses, key=lambda h: -h["signature_match"])):
+        h["signature_rank"] = k + 1
+    sig = [h for h in hypotheses if h["significant"]]
+    structured_after, after_name = structured_before, None
+    if sig:
+        after_name = sig[0]["name"]
+        structured_after = [e for e in locate_mismatch(time, residuals[after_name], channels, sigma, windows)
+                            if e["significant"]]
+    verdict, reason = decide(hypotheses, threshold, structured_before, structured_after,
+                             offsets_ok=not too_far, offsets_note=offsets_note)
+    shown = verdict if verdict in fitted_series else after_name
+    decay = _free_decay_section(time, channels, M, M - r0, fitted_series.get(shown), shown, t_stop)
+
+    doc = {
+        "schema": SCHEMA,
+        "verdict": verdict,
+        "reason": reason,
+        "mismatch": structured_before[:MAX_MISMATCH_ENTRIES],
+        "mismatch_after": {"model": after_name or "nominal", "entries": structured_after[:MAX_MISMATCH_ENTRIES]},
+        "hypotheses": hypotheses,
+        "skipped": skipped,
+        "free_decay": decay,
+        "null_test": {"threshold": threshold, "surrogate_quantile": q, "quantile": NULL_QUANTILE,
+                      "n_surrogates": NULL_SURROGATES, "min_improvement": MIN_IMPROVEMENT,
+                      "dispersion_kappa": kappa},
+        "channels": {c: {"noise": float(sigma[j]), "offset": offsets[c],
+                         "structure_threshold": structure_threshold(c, sigma[j], width)}
+                     for j, c in enumerate(channels)},
+        "windows": [{"window": w, "t_start": a, "t_end": b} for w, a, b in windows],
+        "alignment": {"time_offset": offset, "time_shift_nominal": float(shift0),
+                      "ropes": estimate["ropes"], "reels_stop": float(t_stop), "reels_stop_method": stop_method},
+        "source": source or {},
+        "settings": {"discretization": discretization if isinstance(discretization, str) else dict(discretization),
+                     "candidates": [c["name"] for c in cands], "decay_weight": DECAY_WEIGHT,
+                     "block_s": BLOCK_S, "lowpass_s": LOWPASS_S, "rate_hz": rate},
+        "timing": {"seconds": _time.perf_counter() - started,
+                   "simulations": 1 + sum(h["n_simulations"] for h in hypotheses)},
+    }
+    nominal_shown = M - r0
+    fitted = {name: fitted_series[name] for name in fitted_series}
+    return Diagnosis(doc=_clean(doc), time=time, channels=channels, measured=M, nominal=nominal_shown, fitted=fitted)
+
+
+def _clean(obj):
+    """JSON-ready: numpy scalars to Python, non-finite floats to None."""
+    if isinstance(obj, dict):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return _json_number(obj)
+    return obj
+
+
+def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretization="baseline", candidates=None,
+                  workers=2, seed=0, progress=None):
+    """:func:`load_recording` then :func:`diagnose`: what ``dragline diagnose`` runs."""
+    started = _time.perf_counter()
+    rig = load_rig() if rig is None else rig
+    table, man, source = load_recording(path, maneuver, rig, calibration, progress)
+    loaded = _time.perf_counter() - started
+    result = diagnose(table, man, rig, discretization, candidates, workers, seed, source, progress)
+    result.doc["timing"]["load_seconds"] = loaded
+    result.doc["timing"]["total_seconds"] = _time.perf_counter() - started
+    return result
+
+
+def write_diagnosis_json(path, doc):
+    """Write the diagnosis JSON atomically (strict JSON, no NaN)."""
+    path = os.fspath(path)
+    text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
+    tmp = f"{path}.tmp{os.getpid()}"
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def write_diagnosis_report(path, diagnosis):
+    """Write the diagnosis PDF (see ``_diagnose_report``)."""
+    from ._diagnose_report import write_report_pdf  # noqa: PLC0415
+
+    write_report_pdf(path, diagnosis)

@@ -1,0 +1,586 @@
+"""Candidate mechanisms: fit each through the simulator, score it on held-out data, decide.
+
+Steps 2-4 of the diagnosis (``_diagnose``).
+
+Objective
+---------
+``chi2 = sum_t sum_c w_t ((m_tc - s_tc - b_c - delta ds_tc/dt) / sigma_c)^2``
+over the dynamic channels ``c``: measured ``m`` minus simulated ``s``, each
+channel scaled by its own noise level ``sigma_c`` (``_locate.noise_level``),
+free-decay samples weighted ``DECAY_WEIGHT`` (the swing after the reels
+stop is where the mechanisms act alone, without the reel table's own
+errors). Nuisance parameters, fitted by linear least squares for every
+simulation: a constant offset ``b_c`` per channel (calibration origin,
+marker placement) and one clock shift ``delta`` (the rope-length alignment
+is good to a fraction of a millisecond, but at 1 m/s that is already a
+noise level), bounded by ``MAX_SHIFT``.
+
+Fitting
+-------
+Each candidate's main parameter ``p`` is searched on ``ln p`` over its
+plausible range (``MECHANISMS[name]["range"]``, else ``RANGES``): a grid of
+``N_GRID`` values (step 2's signature ranking: how well the best grid value
+reduces the mismatch), then, for candidates that reduce it at all, a
+bounded Brent search in the grid cell around the best value. The nominal
+model (``p = 0``) is always one of the evaluated points. Simulations start
+from the nominal equilibrium (a mechanism that acts only on motion leaves
+the rest pose unchanged) and run in ``workers`` processes.
+
+Held-out scoring (2-fold cross-validation)
+------------------------------------------
+Samples fall in alternating ``BLOCK_S`` blocks, fold A and fold B. For each
+fold, the evaluated point (and nuisance) that fits it best is chosen, and
+scored on the other fold; the held-out improvement ``D`` is the drop in
+held-out chi2 against the nominal model scored the same way. Measurement
+noise is independent between the folds, so noise that a fit absorbs on one
+fold is not rewarded on the other.
+
+What noise alone gives (null test)
+----------------------------------
+Surrogate residuals with the same spectrum (hence autocorrelation) and
+cross-channel correlation as the best model's residual are made by phase
+randomisation; for each, every candidate's signature (fitted minus nominal
+simulation) is fitted with a non-negative amplitude on one fold and scored
+on the other exactly as above. The threshold is the ``NULL_QUANTILE``
+quantile of the largest improvement over candidates (a family-wise test),
+and never below ``MIN_IMPROVEMENT`` (about ln N, the BIC penalty of one
+parameter). A candidate is significant when ``D`` exceeds it; ``score`` is
+``D / threshold``.
+
+Parameter uncertainty
+---------------------
+From the curvature of ``chi2(ln p)`` at the optimum (parabola through the
+best evaluated points): ``sigma_ln_p = sqrt(kappa / a)``, ``kappa`` the
+residual's dispersion (``chi2_min / N``, at least 1) times its integrated
+autocorrelation time; reported with the two folds' estimates, and the
+larger of the profile and the fold spread is the stated uncertainty.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from ..simulate import MECHANISMS, SimulationError, assemble, parse_physics, simulate, stable_time_step
+
+__all__ = [
+    "RANGES",
+    "candidate_list",
+    "Problem",
+    "fit_candidates",
+    "null_threshold",
+    "decide",
+]
+
+# Plausible ranges of the main parameters, used when the registry gives none.
+RANGES = {
+    "chain_link_friction": (0.02, 1.0),
+    "pulley_friction": (0.01, 0.5),
+    "pulley_inertia": (1e-6, 1e-2),
+    "rope_bending_damping": (1e-4, 1.0),
+    "aero_drag": (0.1, 20.0),
+}
+DECAY_WEIGHT = 2.0
+MAX_SHIFT = 0.01  # s
+BLOCK_S = 0.5
+N_GRID = 8
+# Friction and bending damping stiffen the equations: the stable step falls
+# with the parameter (200x at pulley friction mu = 0.5). A value whose step
+# is more than MAX_COST times smaller than the nominal model's is not
+# simulated; the searched range ends there and says so.
+MAX_COST = 8.0
+REFINE_EVALS = 7
+REFINE_XATOL = 0.02  # in ln p: 2 %
+NULL_SURROGATES = 400
+NULL_QUANTILE = 0.99
+MIN_IMPROVEMENT = 10.0
+# A fitted value in the outermost part of its range is "at the bound".
+BOUND_TOLERANCE = 0.05  # in ln p
+# Verdict policy (see ``decide``).
+EXPLAINED_MIN = 0.75
+
+
+def candidate_list(names=None):
+    """The candidate mechanisms: every one in ``MECHANISMS`` (or those named).
+
+    Returns
+    -------
+    list of dict
+        ``name``, ``main`` (main parameter), ``range`` (lo, hi), ``doc``.
+
+    Raises
+    ------
+    ValueError
+        A name that is not a mechanism.
+    """
+    names = sorted(MECHANISMS) if names is None else list(names)
+    out = []
+    for name in names:
+        if name not in MECHANISMS:
+            raise ValueError(f"unknown mechanism {name!r} (choose from {', '.join(sorted(MECHANISMS))})")
+        entry = MECHANISMS[name]
+        main = entry["main"]
+        lo, hi = entry.get("range") or RANGES.get(name) or (entry["defaults"][main] / 30.0, entry["defaults"][main] * 30.0)
+        out.append({"name": name, "main": main, "range": (float(lo), float(hi)), "doc": entry.get("doc", "")})
+    return out
+
+
+def cost_ratio(candidate, value, rig, maneuver, discretization, nominal_step):
+    """How many times smaller the stable step is with the mechanism at ``value`` (>= 1)."""
+    model = assemble(rig, maneuver, discretization,
+                     physics=[parse_physics(f"{candidate['name']}:{candidate['main']}={value!r}")])
+    return max(1.0, nominal_step / stable_time_step(model))
+
+
+def affordable_range(candidate, rig, maneuver, discretization, max_cost=MAX_COST):
+    """The part of a candidate's range whose simulations cost at most ``max_cost`` nominal ones.
+
+    Returns
+    -------
+    (lo, hi) : tuple of float
+        ``hi`` is the range's own upper end when affordable, else where the
+        cost reaches ``max_cost`` (bisection on ln p, to 1 %).
+    """
+    lo, hi = candidate["range"]
+    nominal_step = stable_time_step(assemble(rig, maneuver, discretization))
+    if cost_ratio(candidate, hi, rig, maneuver, discretization, nominal_step) <= max_cost:
+        return lo, hi
+    a, b = math.log(lo), math.log(hi)
+    if cost_ratio(candidate, lo, rig, maneuver, discretization, nominal_step) > max_cost:
+        return lo, lo
+    while b - a > 0.01:
+        m = 0.5 * (a + b)
+        if cost_ratio(candidate, math.exp(m), rig, maneuver, discretization, nominal_step) <= max_cost:
+            a = m
+        else:
+            b = m
+    return lo, float(math.exp(a))
+
+
+def unavailable_reason(candidate, rig, maneuver, discretization):
+    """None when the simulator can run the candidate, else why not (one line)."""
+    spec = f"{candidate['name']}:{candidate['main']}={candidate['range'][1]!r}"
+    try:
+        assemble(rig, maneuver, discretization, physics=[parse_physics(spec)])
+    except (ValueError, NotImplementedError) as exc:
+        return " ".join(str(exc).split())
+    return None
+
+
+class Problem:
+    """Measured data, noise levels, weights and folds: evaluates one simulation.
+
+    Parameters
+    ----------
+    time : ndarray (n,)
+        Uniform time base (s, simulation clock).
+    measured : ndarray (n, c)
+        Measured channels (SI), NaN where not measured.
+    sigma : ndarray (c,)
+        Noise level per channel.
+    t_stop : float
+        When the reels stop (s).
+    """
+
+    def __init__(self, time, measured, sigma, t_stop):
+        self.time = np.asarray(time, float)
+        self.dt = float(self.time[1] - self.time[0])
+        self.measured = np.asarray(measured, float)
+        self.sigma = np.asarray(sigma, float)
+        self.valid = np.isfinite(self.measured)
+        w = np.where(self.time >= t_stop, DECAY_WEIGHT, 1.0)
+        # Weight of each squared residual: sample weight / sigma^2, 0 if unmeasured.
+        self.W = w[:, None] * self.valid / self.sigma[None, :] ** 2
+        fold = (np.floor((self.time - self.time[0]) / BLOCK_S).astype(int) % 2).astype(bool)
+        self.folds = {"A": ~fold, "B": fold, "all": np.ones_like(fold)}
+        self.n_weighted = float((w[:, None] * self.valid).sum())
+        self.m0 = np.where(self.valid, self.measured, 0.0)
+
+    def nuisance(self, sim, rate, fold):
+        """Least-squares offsets b (c,) and clock shift delta (s) on one fold."""
+        W = self.W * self.folds[fold][:, None]
+        r = self.m0 - sim
+        sw = np.maximum(W.sum(0), 1e-300)
+        rc = r - (W * r).sum(0) / sw
+        dc = rate - (W * rate).sum(0) / sw
+        den = float((W * dc * dc).sum())
+        delta = float((W * rc * dc).sum()) / den if den > 0 else 0.0
+        delta = float(np.clip(delta, -MAX_SHIFT, MAX_SHIFT))
+        b = ((W * r).sum(0) - delta * (W * rate).sum(0)) / sw
+        return b, delta
+
+    def residual(self, sim, nuisance=None, rate=None):
+        """Measured minus simulated minus nuisance (SI), NaN where unmeasured."""
+        sim = np.asarray(sim, float)
+        rate = np.gradient(sim, self.dt, axis=0) if rate is None else rate
+        b, delta = self.nuisance(sim, rate, "all") if nuisance is None else nuisance
+        r = self.measured - sim - b[None, :] - delta * rate
+        return r
+
+    def evaluate(self, sim):
+        """chi2 of one simulation (n, c): on all data and fold by fold.
+
+        Returns
+        -------
+        dict
+            ``full`` (nuisance fitted on all), ``nuisance`` ((b, delta) on
+            all), and ``AA``, ``AB``, ``BB``, ``BA``: chi2 on the second
+            fold with the nuisance fitted on the first.
+        """
+        sim = np.asarray(sim, float)
+        rate = np.gradient(sim, self.dt, axis=0)
+        out = {}
+        for fit in ("all", "A", "B"):
+            b, delta = self.nuisance(sim, rate, fit)
+            r = self.m0 - sim - b[None, :] - delta * rate
+            sq = self.W * r * r
+            if fit == "all":
+                out["full"] = float(sq.sum())
+                out["nuisance"] = (b, delta)
+                continue
+            for ev in ("A", "B"):
+                out[fit + ev] = float(sq[self.folds[ev]].sum())
+        return out
+
+
+# ---------------------------------------------------------------- simulation workers
+
+_CTX = {}
+
+
+def _init(ctx):
+    _CTX.clear()
+    _CTX.update(ctx)
+
+
+def simulate_channels(name, main, value, ctx=None):
+    """One candidate simulation's dynamic channels on the problem's time base.
+
+    Returns
+    -------
+    ndarray (n, c), or None when the simulation blows up.
+    """
+    c = _CTX if ctx is None else ctx
+    physics = [] if value == 0.0 or name is None else [parse_physics(f"{name}:{main}={value!r}")]
+    try:
+        res = simulate(c["rig"], c["maneuver"], c["discretization"], physics, duration=c["duration"],
+                       rate_hz=c["rate_hz"], initial_state=c["initial_state"])
+    except (SimulationError, FloatingPointError):
+        return None
+    table = res.table
+    t = np.asarray(res.time, float)
+    return np.column_stack([np.interp(c["time"], t, np.asarray(table[ch], float)) for ch in c["channels"]])
+
+
+def _grid_job(name, main, value):
+    return name, value, simulate_channels(name, main, value)
+
+
+def _refine_job(name, main, lo, hi):
+    """Bounded Brent search on ln p in [lo, hi]; every evaluated point comes back."""
+    problem = _CTX["problem"]
+    points = []
+
+    def f(x):
+        value = float(math.exp(x))
+        sim = simulate_channels(name, main, value)
+        if sim is None:
+            points.append((value, None))
+            return 1e300
+        points.append((value, sim))
+        return problem.evaluate(sim)["full"]
+
+    minimize_scalar(f, bounds=(math.log(lo), math.log(hi)), method="bounded",
+                    options={"xatol": REFINE_XATOL, "maxiter": REFINE_EVALS})
+    return name, points
+
+
+def _pool(workers, ctx):
+    if workers <= 1:
+        return None
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
+                               initializer=_init, initargs=(ctx,))
+
+
+def _map(pool, fn, jobs):
+    if pool is None:
+        return [fn(*job) for job in jobs]
+    return list(pool.map(fn, *zip(*jobs))) if jobs else []
+
+
+def fit_candidates(problem, ctx, candidates, nominal_sim, workers=2, progress=None):
+    """Grid, then refine, every candidate; collect every evaluated point.
+
+    Parameters
+    ----------
+    problem : Problem
+    ctx : dict
+        ``rig``, ``maneuver``, ``discretization``, ``duration``, ``rate_hz``,
+        ``initial_state``, ``time``, ``channels``: what the simulations need.
+    candidates : list of dict
+        From :func:`candidate_list`.
+    nominal_sim : ndarray (n, c)
+        The nominal model's channels.
+    workers : int
+        Processes for the simulations (1: run here).
+    progress : callable, optional
+        Called with a one-line message as the stages finish.
+
+    Returns
+    -------
+    dict
+        name -> list of ``(value, sim or None, evaluation or None)``, the
+        nominal (value 0) first.
+    """
+    ctx = dict(ctx, problem=problem)
+    _init(ctx)
+    nominal_eval = problem.evaluate(nominal_sim)
+    points = {c["name"]: [(0.0, nominal_sim, nominal_eval)] for c in candidates}
+    jobs = []
+    for c in candidates:
+        lo, hi = c.get("searched", c["range"])
+        for x in np.linspace(math.log(lo), math.log(hi), N_GRID if hi > lo else 1):
+            jobs.append((c["name"], c["main"], float(math.exp(x))))
+    pool = _pool(min(workers, os.cpu_count() or 1), ctx)
+    try:
+        for name, value, sim in _map(pool, _grid_job, jobs):
+            points[name].append((value, sim, None if sim is None else problem.evaluate(sim)))
+        if progress:
+            progress(f"grid of {len(jobs)} simulations done")
+        refine = []
+        for c in candidates:
+            grid = points[c["name"]][1:]
+            chi = np.array([e["full"] if e is not None else np.inf for _, _, e in grid])
+            if not np.isfinite(chi).any() or chi.min() >= nominal_eval["full"]:
+                continue
+            i = int(np.argmin(chi))
+            lo = grid[max(i - 1, 0)][0]
+            hi = grid[min(i + 1, len(grid) - 1)][0]
+            refine.append((c["name"], c["main"], lo, hi))
+        for name, pts in _map(pool, _refine_job, refine):
+            points[name].extend((v, s, None if s is None else problem.evaluate(s)) for v, s in pts)
+        if progress and refine:
+            progress(f"refined {len(refine)} candidates")
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    return points
+
+
+# ---------------------------------------------------------------- scoring
+
+def _weighted_signal(problem, array):
+    """sqrt(W) * array, 0 where unmeasured: residual units in which chi2 is a plain sum of squares."""
+    return np.where(problem.valid, array, 0.0) * np.sqrt(problem.W)
+
+
+def autocorrelation_time(z):
+    """Integrated autocorrelation time of each column of z, summed until the ACF falls below 0.05."""
+    z = np.asarray(z, float)
+    n = z.shape[0]
+    zc = z - z.mean(0)
+    f = np.fft.rfft(zc, 2 * n, axis=0)
+    acf = np.fft.irfft(np.abs(f) ** 2, axis=0)[:n]
+    acf = acf / np.maximum(acf[0], 1e-300)
+    taus = []
+    for j in range(z.shape[1]):
+        below = np.flatnonzero(acf[1:, j] < 0.05)
+        k = int(below[0]) if below.size else n - 1
+        taus.append(1.0 + 2.0 * float(acf[1 : k + 1, j].sum()))
+    return np.maximum(np.array(taus), 1.0)
+
+
+def score_candidate(problem, candidate, points):
+    """Full-data fit, fold fits, held-out improvement and the profile of one candidate."""
+    good = [(v, s, e) for v, s, e in points if e is not None]
+    nominal = good[0]
+    best = min(good, key=lambda p: p[2]["full"])
+    fa = min(good, key=lambda p: p[2]["AA"])
+    fb = min(good, key=lambda p: p[2]["BB"])
+    held_before = nominal[2]["AB"] + nominal[2]["BA"]
+    held_after = fa[2]["AB"] + fb[2]["BA"]
+    lo, hi = candidate["range"]
+    searched_hi = candidate.get("searched", candidate["range"])[1]
+    value = best[0]
+    at_bound = None
+    if value > 0:
+        x = math.log(value)
+        if x <= math.log(lo) + BOUND_TOLERANCE:
+            at_bound = "lower"
+        elif x >= math.log(hi) - BOUND_TOLERANCE:
+            at_bound = "upper"
+        elif x >= math.log(searched_hi) - BOUND_TOLERANCE:
+            at_bound = "search_limit"
+    nonzero = [p for p in good if p[0] > 0]
+    signature = min(nonzero, key=lambda p: p[2]["full"])[1] if nonzero else None
+    evaluated = sorted((v, e["full"]) for v, s, e in good if v > 0)
+    return {
+        "value": value,
+        "sim": best[1],
+        "signature_sim": signature,
+        "evaluation": best[2],
+        "fold_values": [fa[0], fb[0]],
+        "heldout_before": held_before,
+        "heldout_after": held_after,
+        "improvement": held_before - held_after,
+        "at_bound": at_bound,
+        "profile": evaluated,
+        "n_simulations": len(points) - 1,
+        "n_failed": sum(1 for _, s, _ in points if s is None),
+    }
+
+
+def profile_uncertainty(profile, value, kappa):
+    """Standard deviation of ln p from the curvature of chi2(ln p) at the optimum, or None."""
+    if value <= 0:
+        return None
+    pts = sorted(profile, key=lambda p: p[1])[:5]
+    xs = np.array([math.log(v) for v, _ in pts])
+    ys = np.array([c for _, c in pts])
+    if np.unique(np.round(xs, 9)).size < 3:
+        return None
+    x0 = math.log(value)
+    # Local parabola, the nearest points weigh most.
+    w = 1.0 / (0.05 + np.abs(xs - x0))
+    a, b, _ = np.polyfit(xs - x0, ys, 2, w=w)
+    if not a > 0:
+        return None
+    return float(math.sqrt(kappa / a))
+
+
+def null_threshold(problem, residual, signatures, seed=0, n_surrogates=NULL_SURROGATES):
+    """What noise alone gives: the NULL_QUANTILE of the best held-out improvement over candidates.
+
+    Parameters
+    ----------
+    problem : Problem
+    residual : ndarray (n, c)
+        The best model's residual (SI), NaN where unmeasured; its spectrum
+        and cross-channel correlation make the surrogates.
+    signatures : list of ndarray (n, c)
+        Each candidate's fitted minus nominal simulation (SI).
+    seed : int
+
+    Returns
+    -------
+    threshold : float
+        In chi2 units, at least MIN_IMPROVEMENT.
+    quantile : float
+        The surrogate quantile itself.
+    """
+    if not signatures:
+        return MIN_IMPROVEMENT, 0.0
+    z = _weighted_signal(problem, residual)
+    g = np.stack([_weighted_signal(problem, s) for s in signatures])  # (k, n, c)
+    A, B = problem.folds["A"], problem.folds["B"]
+    gAA = (g[:, A] ** 2).sum(axis=(1, 2))
+    gBB = (g[:, B] ** 2).sum(axis=(1, 2))
+    rng = np.random.default_rng(seed)
+    spectrum = np.fft.rfft(z, axis=0)
+    best = np.empty(n_surrogates)
+    for k in range(n_surrogates):
+        phase = rng.uniform(0.0, 2.0 * np.pi, spectrum.shape[0])
+        phase[0] = 0.0
+        if z.shape[0] % 2 == 0:
+            phase[-1] = 0.0
+        n = np.fft.irfft(spectrum * np.exp(1j * phase)[:, None], z.shape[0], axis=0)
+        gnA = np.einsum("knc,nc->k", g[:, A], n[A])
+        gnB = np.einsum("knc,nc->k", g[:, B], n[B])
+        aA = np.maximum(gnA / np.maximum(gAA, 1e-300), 0.0)
+        aB = np.maximum(gnB / np.maximum(gBB, 1e-300), 0.0)
+        d = (2 * aA * gnB - aA**2 * gBB) + (2 * aB * gnA - aB**2 * gAA)
+        best[k] = d.max()
+    q = float(np.quantile(best, NULL_QUANTILE))
+    return max(q, MIN_IMPROVEMENT), q
+
+
+def signature_match(problem, nominal_residual, signature):
+    """Cosine between a candidate's signature and the nominal model's mismatch (weighted)."""
+    z = _weighted_signal(problem, nominal_residual)
+    g = _weighted_signal(problem, signature)
+    den = math.sqrt(float((z * z).sum()) * float((g * g).sum()))
+    return float((z * g).sum()) / den if den > 0 else 0.0
+
+
+# ---------------------------------------------------------------- decision
+
+def decide(hypotheses, threshold, structured_before, structured_after, offsets_ok=True, offsets_note=None):
+    """The verdict: a mechanism, "none" or "unexplained", and why.
+
+    Parameters
+    ----------
+    hypotheses : list of dict
+        Ranked best first (largest held-out ``improvement``), each with
+        ``name``, ``improvement``, ``significant``, ``at_bound``,
+        ``explained_fraction``.
+    threshold : float
+        Null-test threshold on the held-out improvement.
+    structured_before, structured_after : list of dict
+        Significant mismatch entries (``_locate.locate_mismatch``) of the
+        nominal model and of the best significant candidate.
+    offsets_ok : bool
+        False when constant offsets say the rig geometry or calibration
+        differs from the model.
+
+    Rules
+    -----
+    1. Constant offsets beyond tolerance: "unexplained" (the geometry
+       differs; a dynamic mechanism cannot be trusted).
+    2. No significant candidate: "none" when the nominal model leaves no
+       structured mismatch, else "unexplained".
+    3. The best significant candidate at the upper end of its plausible
+       range: "unexplained" (the effect is larger than that mechanism
+       could plausibly give).
+    4. The runner-up significant too, and the two held-out improvements
+       closer than the threshold: "unexplained" (indistinguishable).
+    5. A structured mismatch remains and the best explains less than
+       ``EXPLAINED_MIN`` of the structured mismatch: "unexplained".
+    6. Otherwise the best candidate.
+
+    Returns
+    -------
+    verdict : str
+    reason : str
+    """
+    def where(entries):
+        e = entries[0]
+        return f"{e['channel']} in {e['window']} ({e['t_start']:.1f}-{e['t_end']:.1f} s)"
+
+    if not offsets_ok:
+        return "unexplained", offsets_note
+    sig = [h for h in hypotheses if h.get("significant")]
+    if not sig:
+        if structured_before:
+            return "unexplained", (
+                f"structured mismatch beyond noise ({len(structured_before)} channel windows, largest at "
+                f"{where(structured_before)}) that no candidate reduces more than noise alone would "
+                f"(held-out threshold {threshold:.1f})")
+        return "none", (f"the nominal model fits within measurement noise: no structured mismatch, and no "
+                        f"candidate improves held-out data more than noise alone would (threshold {threshold:.1f})")
+    best = sig[0]
+    if best["at_bound"] == "upper":
+        return "unexplained", (f"{best['name']} improves the fit only at the upper end of its plausible range "
+                               f"({best['main_parameter']} = {best['parameters'][best['main_parameter']]:.3g}); "
+                               "the mismatch is larger than it can plausibly explain")
+    if len(sig) > 1 and best["improvement"] - sig[1]["improvement"] < threshold:
+        return "unexplained", (f"{best['name']} and {sig[1]['name']} explain the mismatch about equally well "
+                               f"(held-out improvements {best['improvement']:.1f} and {sig[1]['improvement']:.1f}, "
+                               f"closer than the noise threshold {threshold:.1f}); the data cannot tell them apart")
+    frac = best.get("explained_fraction")
+    if structured_after and frac is not None and frac < EXPLAINED_MIN:
+        return "unexplained", (f"{best['name']} is the best candidate but explains only {100 * frac:.0f} % of the "
+                               f"structured mismatch; a structured mismatch remains, largest at "
+                               f"{where(structured_after)}")
+    reason = (f"{best['name']} improves held-out data by {best['improvement']:.1f} (chi2), "
+              f"{best['score']:.1f} times what noise alone gives")
+    if len(sig) > 1:
+        reason += f"; runner-up {sig[1]['name']} by {sig[1]['improvement']:.1f}"
+    if structured_after:
+        reason += f"; a smaller structured mismatch remains at {where(structured_after)}"
+    return best["name"], reason

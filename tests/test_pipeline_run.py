@@ -1,0 +1,81 @@
+"""``dragline run``/``replay``: the whole pipeline, its outputs and its failures."""
+
+import json
+
+import pandas as pd
+import pytest
+
+from dragline.pipelines import _run
+from dragline.pipelines.cli import main
+from dragline.simulate import trajectory_columns
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    out = tmp_path_factory.mktemp("run") / "out"
+    summary = _run.run_pipeline(None, out, seed=3, study=False, quiet=True)
+    return out, summary
+
+
+def test_builtin_run_writes_every_output(demo):
+    out, summary = demo
+    for name in ("report.pdf", "metrics.json", "measured.csv", "simulated.csv", "results.mcap", "cameras.json"):
+        assert (out / name).stat().st_size > 0, name
+    measured = pd.read_csv(out / "measured.csv")
+    simulated = pd.read_csv(out / "simulated.csv")
+    assert list(measured.columns[: len(trajectory_columns())]) == trajectory_columns()
+    assert abs(measured["time"].iloc[-1] - simulated["time"].iloc[-1]) < 0.01
+    assert set(summary["stage_seconds"]) >= {"calibrate the cameras", "reconstruct", "compare"}
+    assert not list(out.parent.glob(".*partial*"))
+
+
+def test_the_session_does_not_reveal_the_hidden_physics(demo):
+    out, _ = demo
+    name = _run.BUILTIN_HIDDEN_PHYSICS.split(":")[0]
+    for path in (out / "session").rglob("*"):
+        if path.is_file():
+            assert name.encode() not in path.read_bytes() and b"friction" not in path.read_bytes(), path
+    assert name in (out / "truth" / "physics.json").read_text()
+
+
+def test_builtin_recording_damps_faster_than_the_model(demo):
+    # the paper's finding, which the built-in lab truth is chosen to show
+    out, summary = demo
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["free_decay_summary"]["damping_ratio_ratio"]["median"] > 1.5
+    assert abs(metrics["time_offset"]["applied"]) < 0.01  # the trial is aligned
+
+
+def test_replay_of_the_session_gives_the_same_measurement(demo, tmp_path):
+    out, _ = demo
+    again = tmp_path / "replay"
+    assert main(["replay", str(out / "session" / "capture.mcap"), "--out", str(again), "--no-study", "--quiet"]) == 0
+    a = pd.read_csv(out / "measured.csv")
+    b = pd.read_csv(again / "measured.csv")
+    pd.testing.assert_frame_equal(a, b)
+
+
+def test_bad_inputs_exit_2_and_leave_nothing(tmp_path, capsys):
+    busy = tmp_path / "busy"
+    busy.mkdir()
+    (busy / "keep.txt").write_text("mine")
+    assert main(["run", "--out", str(busy), "--quiet"]) == 2
+    assert main(["run", str(tmp_path / "nothing-here"), "--out", str(tmp_path / "o1")]) == 2
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"not an mcap file")
+    assert main(["replay", str(junk), "--out", str(tmp_path / "o2")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 3 and all(line.startswith("dragline: error:") for line in lines), lines
+    assert (busy / "keep.txt").read_text() == "mine"
+    assert not (tmp_path / "o1").exists() and not (tmp_path / "o2").exists()
+    assert not list(tmp_path.glob(".*partial*"))
+
+
+def test_an_interrupted_run_leaves_no_output(tmp_path, monkeypatch):
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("dragline.reconstruct.reconstruct_session", interrupt)
+    out = tmp_path / "out"
+    assert main(["run", "--out", str(out), "--no-study", "--quiet"]) == 130
+    assert not out.exists() and not list(tmp_path.glob(".*partial*"))
