@@ -109,6 +109,9 @@ class Diagnosis:
         the residual that was judged.
     fitted : dict
         Hypothesis name -> (n, c) simulation with its nuisance applied.
+    located : dict
+        ``before`` (nominal) and ``after`` (best significant candidate):
+        every channel-window entry of ``_locate.locate_mismatch``.
     """
 
     doc: dict
@@ -117,6 +120,7 @@ class Diagnosis:
     measured: np.ndarray
     nominal: np.ndarray
     fitted: dict = field(default_factory=dict)
+    located: dict = field(default_factory=dict)
 
 
 # ---------------------------------------------------------------- input
@@ -297,17 +301,18 @@ def check_maneuver(measured, estimate):
     if estimate["at_search_edge"]:
         raise ValueError("the maneuver table does not match the recorded rope lengths: the best clock offset "
                          f"lies at the search limit ({estimate['offset']:+.2f} s)")
+    bad = [(r["residual_rms"], rope) for rope, r in estimate["ropes"].items() if r["residual_rms"] > ROPE_TOLERANCE]
+    if bad:
+        text = ", ".join(f"{rope} by {1000 * rms:.0f} mm RMS" for rms, rope in sorted(bad, reverse=True))
+        raise ValueError(
+            f"the maneuver table does not match the recorded rope lengths: after aligning the clocks they differ "
+            f"from what the table gives ({text}; tolerance {1000 * ROPE_TOLERANCE:.0f} mm allows for rope stretch)")
     for rope, r in estimate["ropes"].items():
-        if r["residual_rms"] > ROPE_TOLERANCE:
-            raise ValueError(
-                f"the maneuver table does not match the recorded rope lengths: {rope} differs from what the "
-                f"table gives by {1000 * r['residual_rms']:.0f} mm RMS after aligning the clocks "
-                f"(tolerance {1000 * ROPE_TOLERANCE:.0f} mm allows for rope stretch)")
         if abs(r["bias"]) > ROPE_BIAS_TOLERANCE:
             raise ValueError(
-                f"the maneuver table does not match the recorded rope lengths: {rope} is "
-                f"{1000 * r['bias']:+.0f} mm longer on average than the table gives "
-                f"(tolerance {1000 * ROPE_BIAS_TOLERANCE:.0f} mm)")
+                f"the maneuver table does not match the recorded rope lengths: {rope} is on average "
+                f"{1000 * abs(r['bias']):.0f} mm {'longer' if r['bias'] > 0 else 'shorter'} than the table "
+                f"gives (tolerance {1000 * ROPE_BIAS_TOLERANCE:.0f} mm)")
 
 
 # ---------------------------------------------------------------- diagnosis
@@ -508,8 +513,9 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         sx = profile_uncertainty(s["profile"], value, kappa)
         fold_x = [math.log(v) for v in s["fold_values"] if v > 0]
         spread = abs(fold_x[0] - fold_x[1]) / 2.0 if len(fold_x) == 2 else None
-        candidates_sx = [v for v in (sx, spread) if v is not None]
-        stated = max(candidates_sx) if candidates_sx else None
+        # The fold estimates are discrete choices among evaluated points, so
+        # their spread alone may be 0: only a measured curvature states one.
+        stated = None if sx is None or s["at_bound"] else max(sx, spread or 0.0)
         uncertainty = {
             "parameter": main,
             "std": _json_number(value * stated) if stated is not None and value > 0 else None,
@@ -519,7 +525,7 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
             "profile_relative": _json_number(sx),
             "fold_values": s["fold_values"],
             "method": "larger of the chi2(ln p) profile curvature (scaled by the residual's dispersion and "
-                      "autocorrelation) and half the spread of the two folds' estimates",
+                      "autocorrelation) and half the spread of the two folds' estimates; none at a range bound",
         }
         rms_ch = {}
         for j, ch in enumerate(channels):
@@ -549,16 +555,17 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
             "n_failed": s["n_failed"],
             "rms_channels": rms_ch,
             "profile": [{"value": v, "chi2": ch} for v, ch in s["profile"]],
+            "chi2_nominal": nominal_eval["full"],
         })
     hypotheses.sort(key=lambda h: -h["improvement"])
     for k, h in enumerate(sorted(hypotheses, key=lambda h: -h["signature_match"])):
         h["signature_rank"] = k + 1
     sig = [h for h in hypotheses if h["significant"]]
-    structured_after, after_name = structured_before, None
+    structured_after, after_name, located_after = structured_before, None, located
     if sig:
         after_name = sig[0]["name"]
-        structured_after = [e for e in locate_mismatch(time, residuals[after_name], channels, sigma, windows)
-                            if e["significant"]]
+        located_after = locate_mismatch(time, residuals[after_name], channels, sigma, windows)
+        structured_after = [e for e in located_after if e["significant"]]
     verdict, reason = decide(hypotheses, threshold, structured_before, structured_after,
                              offsets_ok=not too_far, offsets_note=offsets_note)
     shown = verdict if verdict in fitted_series else after_name
@@ -591,7 +598,8 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     }
     nominal_shown = M - r0
     fitted = {name: fitted_series[name] for name in fitted_series}
-    return Diagnosis(doc=_clean(doc), time=time, channels=channels, measured=M, nominal=nominal_shown, fitted=fitted)
+    return Diagnosis(doc=_clean(doc), time=time, channels=channels, measured=M, nominal=nominal_shown, fitted=fitted,
+                     located={"before": _clean(located), "after": _clean(located_after)})
 
 
 def _clean(obj):

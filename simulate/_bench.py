@@ -34,7 +34,8 @@ m = model.kernel_tuple(); work = _kernel.make_work(m)
 n = int(round(duration * 200)) * per
 def run(step, steps):
     t = time.perf_counter()
-    rec, status, _, _ = _kernel.integrate(eq.state, 0.0, step, steps, steps // int(round(duration * 200)), m, work, 100.0)
+    every = max(1, steps // int(round(duration * 200)))
+    rec, status, _, _ = _kernel.integrate(eq.state, 0.0, step, steps, every, m, work, 100.0)
     assert status == 0
     return time.perf_counter() - t, rec
 run(dt, per)  # warm-up: loads the compiled kernel

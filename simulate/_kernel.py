@@ -62,6 +62,7 @@ def _body_matrix(roll, pitch, yaw, T, b):
     T[b, 2, 0] = -cs * st + ss * sf * ct
     T[b, 2, 1] = ss * st + cs * sf * ct
     T[b, 2, 2] = cf * ct
+    return sf, cf, ss, cs
 
 
 @njit(cache=True)
@@ -187,93 +188,6 @@ def _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLse
 
 
 @njit(cache=True)
-def _joint_moments(m, T, y, el_u, el_dv, el_len, el_T, el_arm, fp, fb, mb):
-    """Bending moments at rope joints: bending damping and chain-link friction.
-
-    A joint joins two consecutive elements of a segment, or an end element
-    and the body it hangs from. With omega_rel the relative angular velocity
-    of the two (an element's is u x (v_b - v_a) / L) across the second
-    element (its part along the element removed: a rope carries no torsion),
-    the moment on the second is
-        M = -c omega_rel - mu r T omega_rel / sqrt(|omega_rel|^2 + eps^2)
-    (c: bending damping, N m s/rad; mu: link friction coefficient; r: link
-    pin radius, m; T: joint tension, N), and -M on the first. A moment M on
-    an element is the couple (M x u) / L at its ends. Both terms only remove
-    energy: the power is M . omega_rel <= 0. The friction is
-    Coulomb-like, smoothed below eps (rad/s) so the explicit step stays
-    stable.
-    """
-    joint_a, joint_b, joint_seg = m[35], m[36], m[37]
-    seg_bend_c, seg_link_mu, seg_link_r, eps = m[38], m[39], m[45], m[46]
-    el_ka, el_ia, el_kb, el_ib = m[8], m[9], m[11], m[12]
-    for j in range(joint_b.shape[0]):
-        s = joint_seg[j]
-        c = seg_bend_c[s]
-        mu = seg_link_mu[s]
-        if c == 0.0 and mu == 0.0:
-            continue
-        e2 = joint_b[j]
-        inv2 = 1.0 / el_len[e2]
-        u2x, u2y, u2z = el_u[e2, 0], el_u[e2, 1], el_u[e2, 2]
-        w2x = (u2y * el_dv[e2, 2] - u2z * el_dv[e2, 1]) * inv2
-        w2y = (u2z * el_dv[e2, 0] - u2x * el_dv[e2, 2]) * inv2
-        w2z = (u2x * el_dv[e2, 1] - u2y * el_dv[e2, 0]) * inv2
-        e1 = joint_a[j]
-        if e1 >= 0:
-            inv1 = 1.0 / el_len[e1]
-            u1x, u1y, u1z = el_u[e1, 0], el_u[e1, 1], el_u[e1, 2]
-            w1x = (u1y * el_dv[e1, 2] - u1z * el_dv[e1, 1]) * inv1
-            w1y = (u1z * el_dv[e1, 0] - u1x * el_dv[e1, 2]) * inv1
-            w1z = (u1x * el_dv[e1, 1] - u1y * el_dv[e1, 0]) * inv1
-            tension = 0.5 * (el_T[e1] + el_T[e2])
-        else:  # joint with a body: its inertial angular velocity T (p, q, r)
-            b = -e1 - 1
-            p, q, r = y[12 * b + 9], y[12 * b + 10], y[12 * b + 11]
-            w1x = T[b, 0, 0] * p + T[b, 0, 1] * q + T[b, 0, 2] * r
-            w1y = T[b, 1, 0] * p + T[b, 1, 1] * q + T[b, 1, 2] * r
-            w1z = T[b, 2, 0] * p + T[b, 2, 1] * q + T[b, 2, 2] * r
-            tension = el_T[e2]
-        rx, ry, rz = w2x - w1x, w2y - w1y, w2z - w1z
-        # only bending across the second element: a rope carries no torsion
-        along = rx * u2x + ry * u2y + rz * u2z
-        rx, ry, rz = rx - along * u2x, ry - along * u2y, rz - along * u2z
-        gain = c
-        if mu > 0.0 and tension > 0.0:
-            gain += mu * seg_link_r[s] * tension / np.sqrt(rx * rx + ry * ry + rz * rz + eps * eps)
-        Mx, My, Mz = -gain * rx, -gain * ry, -gain * rz
-        # couple on the second element: (M x u2) / L2 at its b end, minus at its a end
-        fx = (My * u2z - Mz * u2y) * inv2
-        fy = (Mz * u2x - Mx * u2z) * inv2
-        fz = (Mx * u2y - My * u2x) * inv2
-        _push(el_kb[e2], el_ib[e2], el_arm[e2, 3], el_arm[e2, 4], el_arm[e2, 5], fx, fy, fz, fp, fb, mb)
-        _push(el_ka[e2], el_ia[e2], el_arm[e2, 0], el_arm[e2, 1], el_arm[e2, 2], -fx, -fy, -fz, fp, fb, mb)
-        if e1 >= 0:
-            fx = -(My * u1z - Mz * u1y) * inv1
-            fy = -(Mz * u1x - Mx * u1z) * inv1
-            fz = -(Mx * u1y - My * u1x) * inv1
-            _push(el_kb[e1], el_ib[e1], el_arm[e1, 3], el_arm[e1, 4], el_arm[e1, 5], fx, fy, fz, fp, fb, mb)
-            _push(el_ka[e1], el_ia[e1], el_arm[e1, 0], el_arm[e1, 1], el_arm[e1, 2], -fx, -fy, -fz, fp, fb, mb)
-        else:
-            mb[b, 0] -= Mx
-            mb[b, 1] -= My
-            mb[b, 2] -= Mz
-
-
-@njit(cache=True, inline="always")
-def _capstan(mu, eA, eB, vs, eps, el_u, el_T):
-    """Ring friction on the slide (N): capstan limit T_low (e^(mu beta) - 1).
-
-    beta is the wrap angle between the rope's incoming and outgoing elements.
-    Coulomb-like, smoothed below eps (m/s) so the explicit step stays stable.
-    """
-    cosb = el_u[eA, 0] * el_u[eB, 0] + el_u[eA, 1] * el_u[eB, 1] + el_u[eA, 2] * el_u[eB, 2]
-    cosb = min(1.0, max(-1.0, cosb))
-    t_low = min(el_T[eA], el_T[eB])
-    limit = t_low * (np.exp(mu * np.arccos(cosb)) - 1.0)
-    return limit * vs / np.sqrt(vs * vs + eps * eps)
-
-
-@njit(cache=True)
 def rhs(t, y, dy, m, work):
     """dy = f(t, y). ``work`` holds scratch arrays (see ``make_work``)."""
     nb = m[0]
@@ -318,14 +232,11 @@ def rhs(t, y, dy, m, work):
     o_F = o_vel + 3 * P
     o_ring = o_F + E
 
-    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel, el_u, el_dv, el_len, el_T, el_arm = work
-    has_joints = m[34] != 0
-    ring_mu = m[42]
-    store = has_joints or m[44] != 0
+    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel, el_u, el_dv, el_len, el_T, el_arm, trig, inv_mass_seg = work
 
     _fixed_points(t, reel_t, point_pos, fpos, fvel)
     for b in range(nb):
-        _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
+        trig[b, 0], trig[b, 1], trig[b, 2], trig[b, 3] = _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
     _segment_lengths(t, seg_len0, seg_reel, seg_reel_off, reel_t, reel_len, Lseg, dLseg, reel_buf, reel_rate)
     fb[:, :] = 0.0
     mb[:, :] = 0.0
@@ -345,9 +256,9 @@ def rhs(t, y, dy, m, work):
         length = np.sqrt(dx * dx + dyy * dyy + dz * dz)
         Fm = y[o_F + e]
         tension = 0.0
-        inv = 1.0 / length
-        ux, uy, uz = dx * inv, dyy * inv, dz * inv
         if length > Le:
+            inv = 1.0 / length
+            ux, uy, uz = dx * inv, dyy * inv, dz * inv
             rate = ux * (uxb - uxa) + uy * (uyb - uya) + uz * (uzb - uza)
             invL = 1.0 / Le
             dy[o_F + e] = seg_kv[s] * invL * (rate - length * dLe * invL) - seg_relax[s] * Fm
@@ -356,13 +267,6 @@ def rhs(t, y, dy, m, work):
                 tension = 0.0
         else:
             dy[o_F + e] = 0.0  # slack: F_m is held at zero by ``project``
-        if store:
-            el_u[e, 0], el_u[e, 1], el_u[e, 2] = ux, uy, uz
-            el_dv[e, 0], el_dv[e, 1], el_dv[e, 2] = uxb - uxa, uyb - uya, uzb - uza
-            el_len[e] = length
-            el_T[e] = tension
-            el_arm[e, 0], el_arm[e, 1], el_arm[e, 2] = a0, a1, a2
-            el_arm[e, 3], el_arm[e, 4], el_arm[e, 5] = b0, b1, b2
         if el_side[e] == 1:
             sumA[seg_ring[s]] += tension + tension * tension / (2.0 * (seg_ks[s] + seg_kv[s]))
         elif el_side[e] == 2:
@@ -373,13 +277,12 @@ def rhs(t, y, dy, m, work):
         _push(el_ka[e], el_ia[e], a0, a1, a2, fx, fy, fz, fp, fb, mb)
         _push(el_kb[e], el_ib[e], b0, b1, b2, -fx, -fy, -fz, fp, fb, mb)
 
-    if has_joints:
-        _joint_moments(m, T, y, el_u, el_dv, el_len, el_T, el_arm, fp, fb, mb)
-
     # particles: lumped mass from the segment's current unstretched length
+    for s in range(seg_rho.shape[0]):
+        inv_mass_seg[s] = seg_npart[s] / (seg_rho[s] * Lseg[s])
     for i in range(P):
         s = part_seg[i]
-        mass = seg_rho[s] * Lseg[s] / seg_npart[s]
+        inv_mass = inv_mass_seg[s]
         cda = seg_cda[s] * Lseg[s] / seg_npart[s]
         vx = y[o_vel + 3 * i]
         vy = y[o_vel + 3 * i + 1]
@@ -390,7 +293,7 @@ def rhs(t, y, dy, m, work):
         for k in range(3):
             v = y[o_vel + 3 * i + k]
             dy[o_part + 3 * i + k] = v
-            dy[o_vel + 3 * i + k] = (fp[i, k] - drag * v) / mass - relax_damping * v
+            dy[o_vel + 3 * i + k] = (fp[i, k] - drag * v) * inv_mass - relax_damping * v
         dy[o_vel + 3 * i + 2] += g
 
     for b in range(nb):
@@ -405,10 +308,8 @@ def rhs(t, y, dy, m, work):
             dy[o + k] = v
             dy[o + 3 + k] = (fb[b, k] - drag * v) / mass - relax_damping * v
         dy[o + 5] += g
-        roll, yaw = y[o + 6], y[o + 8]
         p, q, r = y[o + 9], y[o + 10], y[o + 11]
-        sf, cf = np.sin(roll), np.cos(roll)
-        ss, cs = np.sin(yaw), np.cos(yaw)
+        sf, cf, ss, cs = trig[b, 0], trig[b, 1], trig[b, 2], trig[b, 3]
         pitch_rate = (p * ss + q * cs) / cf  # Eq. 3
         dy[o + 6] = p * cs - q * ss
         dy[o + 7] = pitch_rate
@@ -433,11 +334,8 @@ def rhs(t, y, dy, m, work):
         mass = seg_rho[s] * Lseg[s] / 3.0 + ring_added_mass[rg]
         meanA = sumA[rg] / seg_nelA[s]
         meanB = sumB[rg] / (seg_nel[s] - seg_nelA[s])
-        friction = 0.0
-        if ring_mu[rg] > 0.0:
-            friction = _capstan(ring_mu[rg], m[40][rg], m[41][rg], vs, m[43], el_u, el_T)
         dy[o_ring + 2 * rg] = vs
-        dy[o_ring + 2 * rg + 1] = (meanA - meanB - friction) / mass - relax_damping * vs
+        dy[o_ring + 2 * rg + 1] = (meanA - meanB) / mass - relax_damping * vs
 
 
 @njit(cache=True)
@@ -470,6 +368,196 @@ def project(t, y, m, work):
             y[o_F + e] = 0.0
 
 
+@njit(cache=True)
+def dissipate(t, y, dt, m, work):
+    """Implicit step of the dissipative mechanisms, after each RK4 step (splitting).
+
+    Joint moments (rope bending damping c, chain-link friction mu r T) and
+    ring friction (capstan, T_low (e^(mu beta) - 1)) are stiff on these light
+    ropes: explicitly they would need steps far below the axial-wave limit.
+    Here they act as velocity impulses solved implicitly, one Gauss-Seidel
+    sweep over the joints: with w the joint's inverse inertia to a bending
+    impulse (sum of 1/m over the joint's element ends, over L^2), damping
+    takes H = -c dt omega / (1 + c dt w), and Coulomb friction either stops
+    the relative rotation (stick) or takes |H| = mu r T dt (slip); a ring's
+    slide likewise. Unconditionally stable and dissipative; first order in
+    these terms (Lie splitting), exact in the nominal model, where it does
+    nothing.
+    """
+    has_joints = m[34] != 0
+    has_rings = m[43] != 0
+    if not (has_joints or has_rings):
+        return
+    nb = m[0]
+    P = m[5].shape[0]
+    E = m[6].shape[0]
+    o_part = 12 * nb
+    o_vel = o_part + 3 * P
+    o_F = o_vel + 3 * P
+    o_ring = o_F + E
+    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel, el_u, el_dv, el_len, el_T, el_arm = work[:17]
+    el_seg, el_side, el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m[6], m[7], m[8], m[9], m[10], m[11], m[12], m[13]
+    seg_ks, seg_ring, seg_nel, seg_nelA, seg_npart, seg_rho = m[14], m[20], m[21], m[22], m[23], m[24]
+    _fixed_points(t, m[27], m[29], fpos, fvel)
+    for b in range(nb):
+        _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
+    _segment_lengths(t, m[17], m[18], m[19], m[27], m[28], Lseg, dLseg, reel_buf, reel_rate)
+    for e in range(E):
+        se = el_seg[e]
+        rg = seg_ring[se]
+        if m[38][se] == 0.0 and m[39][se] == 0.0 and not (rg >= 0 and m[42][rg] > 0.0):
+            continue  # no mechanism acts on this segment
+        Le, _ = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
+        xa, ya, za, _, _, _, a0, a1, a2 = _node(el_ka[e], el_ia[e], el_ra, e, y, T, fpos, fvel, o_part, o_vel)
+        xb, yb, zb, _, _, _, b0, b1, b2 = _node(el_kb[e], el_ib[e], el_rb, e, y, T, fpos, fvel, o_part, o_vel)
+        dx, dyy, dz = xb - xa, yb - ya, zb - za
+        length = np.sqrt(dx * dx + dyy * dyy + dz * dz)
+        el_len[e] = length
+        el_u[e, 0], el_u[e, 1], el_u[e, 2] = dx / length, dyy / length, dz / length
+        tension = seg_ks[el_seg[e]] / Le * (length - Le) + y[o_F + e] if length > Le else 0.0
+        el_T[e] = max(tension, 0.0)
+        el_arm[e, 0], el_arm[e, 1], el_arm[e, 2] = a0, a1, a2
+        el_arm[e, 3], el_arm[e, 4], el_arm[e, 5] = b0, b1, b2
+    if has_joints:
+        _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o_part, o_vel)
+    if has_rings:
+        ring_seg, ring_mu, ring_eA, ring_eB = m[25], m[42], m[40], m[41]
+        for rg in range(ring_seg.shape[0]):
+            if ring_mu[rg] == 0.0:
+                continue
+            s = ring_seg[rg]
+            eA, eB = ring_eA[rg], ring_eB[rg]
+            cosb = el_u[eA, 0] * el_u[eB, 0] + el_u[eA, 1] * el_u[eB, 1] + el_u[eA, 2] * el_u[eB, 2]
+            beta = np.arccos(min(1.0, max(-1.0, cosb)))
+            limit = min(el_T[eA], el_T[eB]) * (np.exp(ring_mu[rg] * beta) - 1.0)
+            mass = seg_rho[s] * Lseg[s] / 3.0 + m[26][rg]
+            i = o_ring + 2 * rg + 1
+            vs = y[i]
+            if abs(vs) * mass <= limit * dt:
+                y[i] = 0.0  # stick
+            else:
+                y[i] = vs - np.sign(vs) * limit * dt / mass
+
+
+@njit(cache=True, inline="always")
+def _inverse_mass(kind, idx, arm0, arm1, arm2, y, m, Lseg, o_part):
+    """1/m of an element end for a bending impulse; a body end adds its rotation."""
+    if kind == KIND_PARTICLE:
+        s = m[5][idx]
+        return m[23][s] / (m[24][s] * Lseg[s])
+    if kind == KIND_BODY:
+        I = m[2]
+        imin = min(I[idx, 0, 0], min(I[idx, 1, 1], I[idx, 2, 2]))
+        return 1.0 / m[1][idx] + (arm0 * arm0 + arm1 * arm1 + arm2 * arm2) / imin
+    return 0.0
+
+
+@njit(cache=True, inline="always")
+def _kick(kind, idx, arm0, arm1, arm2, jx, jy, jz, y, m, T, Lseg, o_part, o_vel):
+    """Apply a linear impulse (N s) at an element end: particle or body point."""
+    if kind == KIND_PARTICLE:
+        s = m[5][idx]
+        inv = m[23][s] / (m[24][s] * Lseg[s])
+        y[o_vel + 3 * idx] += jx * inv
+        y[o_vel + 3 * idx + 1] += jy * inv
+        y[o_vel + 3 * idx + 2] += jz * inv
+    elif kind == KIND_BODY:
+        o = 12 * idx
+        invm = 1.0 / m[1][idx]
+        y[o + 3] += jx * invm
+        y[o + 4] += jy * invm
+        y[o + 5] += jz * invm
+        _turn(idx, arm1 * jz - arm2 * jy, arm2 * jx - arm0 * jz, arm0 * jy - arm1 * jx, y, m, T)
+
+
+@njit(cache=True, inline="always")
+def _turn(b, hx, hy, hz, y, m, T):
+    """Apply an angular impulse (N m s, inertial axes) to body b's rates."""
+    Ii = m[3]
+    bx = T[b, 0, 0] * hx + T[b, 1, 0] * hy + T[b, 2, 0] * hz
+    by = T[b, 0, 1] * hx + T[b, 1, 1] * hy + T[b, 2, 1] * hz
+    bz = T[b, 0, 2] * hx + T[b, 1, 2] * hy + T[b, 2, 2] * hz
+    o = 12 * b
+    y[o + 9] += Ii[b, 0, 0] * bx + Ii[b, 0, 1] * by + Ii[b, 0, 2] * bz
+    y[o + 10] += Ii[b, 1, 0] * bx + Ii[b, 1, 1] * by + Ii[b, 1, 2] * bz
+    y[o + 11] += Ii[b, 2, 0] * bx + Ii[b, 2, 1] * by + Ii[b, 2, 2] * bz
+
+
+@njit(cache=True, inline="always")
+def _element_rate(e, y, m, T, fpos, fvel, el_u, el_len, o_part, o_vel):
+    """Angular velocity (inertial) of element e from the current velocities."""
+    _, _, _, vxa, vya, vza, _, _, _ = _node(m[8][e], m[9][e], m[10], e, y, T, fpos, fvel, o_part, o_vel)
+    _, _, _, vxb, vyb, vzb, _, _, _ = _node(m[11][e], m[12][e], m[13], e, y, T, fpos, fvel, o_part, o_vel)
+    dvx, dvy, dvz = vxb - vxa, vyb - vya, vzb - vza
+    ux, uy, uz = el_u[e, 0], el_u[e, 1], el_u[e, 2]
+    inv = 1.0 / el_len[e]
+    return (uy * dvz - uz * dvy) * inv, (uz * dvx - ux * dvz) * inv, (ux * dvy - uy * dvx) * inv
+
+
+@njit(cache=True)
+def _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o_part, o_vel):
+    joint_a, joint_b, joint_seg = m[35], m[36], m[37]
+    seg_bend_c, seg_link_mu, seg_link_r = m[38], m[39], m[44]
+    el_ka, el_ia, el_kb, el_ib = m[8], m[9], m[11], m[12]
+    for j in range(joint_b.shape[0]):
+        s = joint_seg[j]
+        c = seg_bend_c[s]
+        mu = seg_link_mu[s]
+        if c == 0.0 and mu == 0.0:
+            continue
+        e2 = joint_b[j]
+        e1 = joint_a[j]
+        w2x, w2y, w2z = _element_rate(e2, y, m, T, fpos, fvel, el_u, el_len, o_part, o_vel)
+        L2 = el_len[e2]
+        w = (_inverse_mass(el_ka[e2], el_ia[e2], el_arm[e2, 0], el_arm[e2, 1], el_arm[e2, 2], y, m, Lseg, o_part)
+             + _inverse_mass(el_kb[e2], el_ib[e2], el_arm[e2, 3], el_arm[e2, 4], el_arm[e2, 5], y, m, Lseg, o_part)) / (L2 * L2)
+        if e1 >= 0:
+            w1x, w1y, w1z = _element_rate(e1, y, m, T, fpos, fvel, el_u, el_len, o_part, o_vel)
+            L1 = el_len[e1]
+            w += (_inverse_mass(el_ka[e1], el_ia[e1], el_arm[e1, 0], el_arm[e1, 1], el_arm[e1, 2], y, m, Lseg, o_part)
+                  + _inverse_mass(el_kb[e1], el_ib[e1], el_arm[e1, 3], el_arm[e1, 4], el_arm[e1, 5], y, m, Lseg, o_part)) / (L1 * L1)
+            tension = 0.5 * (el_T[e1] + el_T[e2])
+        else:
+            b = -e1 - 1
+            p, q, r = y[12 * b + 9], y[12 * b + 10], y[12 * b + 11]
+            w1x = T[b, 0, 0] * p + T[b, 0, 1] * q + T[b, 0, 2] * r
+            w1y = T[b, 1, 0] * p + T[b, 1, 1] * q + T[b, 1, 2] * r
+            w1z = T[b, 2, 0] * p + T[b, 2, 1] * q + T[b, 2, 2] * r
+            I = m[2]
+            w += 1.0 / min(I[b, 0, 0], min(I[b, 1, 1], I[b, 2, 2]))
+            tension = el_T[e2]
+        u2x, u2y, u2z = el_u[e2, 0], el_u[e2, 1], el_u[e2, 2]
+        rx, ry, rz = w2x - w1x, w2y - w1y, w2z - w1z
+        along = rx * u2x + ry * u2y + rz * u2z  # a rope carries no torsion
+        rx, ry, rz = rx - along * u2x, ry - along * u2y, rz - along * u2z
+        # implicit damping, then Coulomb friction on what is left
+        k = c * dt / (1.0 + c * dt * w)
+        hx, hy, hz = -k * rx, -k * ry, -k * rz
+        rx, ry, rz = rx + w * hx, ry + w * hy, rz + w * hz
+        if mu > 0.0 and tension > 0.0:
+            speed = np.sqrt(rx * rx + ry * ry + rz * rz)
+            if speed > 0.0:
+                cap = mu * seg_link_r[s] * tension * dt
+                stop = speed / w
+                f = min(stop, cap) / speed
+                hx, hy, hz = hx - f * rx, hy - f * ry, hz - f * rz
+        # the angular impulse on e2 as the linear couple (H x u2) / L2 at its ends
+        jx = (hy * u2z - hz * u2y) / L2
+        jy = (hz * u2x - hx * u2z) / L2
+        jz = (hx * u2y - hy * u2x) / L2
+        _kick(el_kb[e2], el_ib[e2], el_arm[e2, 3], el_arm[e2, 4], el_arm[e2, 5], jx, jy, jz, y, m, T, Lseg, o_part, o_vel)
+        _kick(el_ka[e2], el_ia[e2], el_arm[e2, 0], el_arm[e2, 1], el_arm[e2, 2], -jx, -jy, -jz, y, m, T, Lseg, o_part, o_vel)
+        if e1 >= 0:
+            u1x, u1y, u1z = el_u[e1, 0], el_u[e1, 1], el_u[e1, 2]
+            jx = -(hy * u1z - hz * u1y) / L1
+            jy = -(hz * u1x - hx * u1z) / L1
+            jz = -(hx * u1y - hy * u1x) / L1
+            _kick(el_kb[e1], el_ib[e1], el_arm[e1, 3], el_arm[e1, 4], el_arm[e1, 5], jx, jy, jz, y, m, T, Lseg, o_part, o_vel)
+            _kick(el_ka[e1], el_ia[e1], el_arm[e1, 0], el_arm[e1, 1], el_arm[e1, 2], -jx, -jy, -jz, y, m, T, Lseg, o_part, o_vel)
+        else:
+            _turn(b, -hx, -hy, -hz, y, m, T)
+
+
 def make_work(m):
     """Scratch arrays for ``rhs`` and ``project`` (allocated once per run)."""
     nb = m[0]
@@ -495,6 +583,8 @@ def make_work(m):
         np.zeros(m[6].shape[0]),
         np.zeros(m[6].shape[0]),
         np.zeros((m[6].shape[0], 6)),
+        np.zeros((max(nb, 1), 4)),
+        np.zeros(S),
     )
 
 
@@ -543,6 +633,7 @@ def integrate(y0, t0, dt, n_steps, record_every, m, work, max_speed):
         for i in range(n):
             y[i] += sixth * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
         project(t + dt, y, m, work)
+        dissipate(t + dt, y, dt, m, work)
         if (step + 1) % record_every == 0:
             for i in range(n):
                 if not np.isfinite(y[i]):

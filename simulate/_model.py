@@ -174,8 +174,7 @@ KERNEL_FIELDS = (
     "reel_t", "reel_len", "point_pos", "relax_damping",
     "body_cda", "seg_cda", "air_density",
     "has_joints", "joint_a", "joint_b", "joint_seg", "seg_bend_c", "seg_link_mu",
-    "ring_eA", "ring_eB", "ring_mu", "friction_speed_eps", "has_ring_friction",
-    "seg_link_r", "friction_omega_eps",
+    "ring_eA", "ring_eB", "ring_mu", "has_ring_friction", "seg_link_r",
 )  # fmt: skip
 
 
@@ -340,10 +339,8 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         "ring_eA": np.array([seg_elements[seg_names[s]].start + seg["nelA"][s] - 1 for s in ring_seg], np.int64),
         "ring_eB": np.array([seg_elements[seg_names[s]].start + seg["nelA"][s] for s in ring_seg], np.int64),
         "ring_mu": np.zeros(len(ring_seg)),
-        "friction_speed_eps": 0.05,
         "has_ring_friction": 0,
         "seg_link_r": np.zeros(len(seg_names)),
-        "friction_omega_eps": 0.2,
     }
     model = Model(
         rig=rig,

@@ -76,45 +76,42 @@ def _segments(model, which, default_kind):
 
 def _apply_rope_bending_damping(model, p):
     # Internal friction of a bent rope: a moment -c omega_rel at every joint
-    # (kernel: _joint_moments). Exponential (viscous) decay signature.
+    # (kernel: _joint_impulses). Exponential (viscous) decay signature.
     for s in _segments(model, p["segments"], "ropes"):
         model.arrays["seg_bend_c"][s] = p["c"]
 
 
 def _apply_chain_link_friction(model, p):
     # Links rolling on each other under tension T resist with a Coulomb
-    # moment mu T r_pin (kernel: _joint_moments): the tighter the chain, the
+    # moment mu T r_pin (kernel: _joint_impulses): the tighter the chain, the
     # more it resists bending. Linear (Coulomb) decay signature.
     for s in _segments(model, p["segments"], "chains"):
         model.arrays["seg_link_mu"][s] = p["mu"]
         model.arrays["seg_link_r"][s] = p["pin_radius"]
-    model.arrays["friction_omega_eps"] = p["omega_eps"]
 
 
 def _apply_pulley_friction(model, p):
     # Capstan friction where the rope slides through a ring (kernel:
-    # _capstan): up to T_low (e^(mu beta) - 1) against the slide.
+    # dissipate): up to T_low (e^(mu beta) - 1) against the slide, with
+    # stick when the slide would stop within the step.
     for r in _rings(model, p["pulley"]):
         model.arrays["ring_mu"][r] = p["mu"]
-    model.arrays["friction_speed_eps"] = p["speed_eps"]
 
 
 MECHANISMS = {
     "chain_link_friction": {
         "main": "mu",
-        "defaults": {"mu": 0.3, "pin_radius": 0.00475, "omega_eps": 2.0, "segments": "default"},
-        "doc": "inter-link friction coefficient (-); moment mu T pin_radius (m) at every chain joint, "
-        "Coulomb above omega_eps (rad/s) of relative link rotation and viscous below it (links this "
-        "light lock hard: a smaller omega_eps is truer but needs a much smaller step); plausible "
-        "0.05-0.6 for steel links",
+        "defaults": {"mu": 0.3, "pin_radius": 0.00475, "segments": "default"},
+        "doc": "inter-link friction coefficient (-); Coulomb moment mu T pin_radius (m) against "
+        "bending at every chain joint (stick or slip); plausible 0.05-0.6 for steel links",
         "range": (0.01, 1.0),
         "apply": _apply_chain_link_friction,
     },
     "pulley_friction": {
         "main": "mu",
-        "defaults": {"mu": 0.1, "pulley": "all", "speed_eps": 0.05},
-        "doc": "ring friction coefficient (-), capstan T_low (e^(mu wrap) - 1), smoothed below "
-        "speed_eps (m/s); pulley boom, hoist_cluster or all; plausible 0.02-0.3",
+        "defaults": {"mu": 0.1, "pulley": "all"},
+        "doc": "ring friction coefficient (-), capstan T_low (e^(mu wrap) - 1) against the rope's "
+        "slide (stick or slip); pulley boom, hoist_cluster or all; plausible 0.02-0.3",
         "range": (0.005, 0.5),
         "apply": _apply_pulley_friction,
     },

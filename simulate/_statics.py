@@ -335,31 +335,8 @@ def stable_time_step(model, safety=0.75, state=None):
         np.max(2.0 * k_body / a["body_mass"], initial=0.0),
         np.max(2.0 * k_rot / I_axes, initial=0.0),
     )
-    dt = safety * 2.0 * np.sqrt(2.0) / np.sqrt(lam)
-    rate = max(_joint_damping_rate(model, rest, m_part, I_axes), _ring_friction_rate(model))
-    if rate > 0:  # RK4's real-axis limit is 2.785
-        dt = min(dt, safety * 2.785 / rate)
-    return dt
-
-
-def _rig_weight(model):
-    a = model.arrays
-    return a["g"] * (a["body_mass"].sum() + (a["seg_rho"] * model.segment_lengths(a["reel_t"]).max(axis=1)).sum())
-
-
-def _ring_friction_rate(model):
-    """Decay rate (1/s) of a ring's smoothed friction: limit / (eps m_s), limit at the rig's weight."""
-    a = model.arrays
-    if not a["has_ring_friction"]:
-        return 0.0
-    Lmin = model.segment_lengths(a["reel_t"]).min(axis=1)
-    rate = 0.0
-    for r, s in enumerate(a["ring_seg"]):
-        m_s = a["seg_rho"][s] * Lmin[s] / 3.0 + a["ring_added_mass"][r]
-        limit = _rig_weight(model) * (np.exp(a["ring_mu"][r] * np.pi) - 1.0)
-        # x2: measured, the coupled slide is unstable just inside the bare bound
-        rate = max(rate, 2.0 * limit / (a["friction_speed_eps"] * m_s))
-    return rate
+    # the dissipative mechanisms are stepped implicitly (_kernel.dissipate): no limit from them
+    return safety * 2.0 * np.sqrt(2.0) / np.sqrt(lam)
 
 
 def _shortest_rest_lengths(model, Lmin, state):
@@ -380,30 +357,3 @@ def _shortest_rest_lengths(model, Lmin, state):
             share = uA / nA if side == 1 else (Lmin[s] - uA) / (a["seg_nel"][s] - nA)
             rest[e] = 0.75 * min(share, Lmin[s] / a["seg_nel"][s])
     return rest
-
-
-def _joint_damping_rate(model, rest, m_part, I_axes):
-    """Largest decay rate (1/s) the joint mechanisms impose, a Gershgorin bound.
-
-    A joint damping c (or chain friction's smoothed gain mu r T / eps, with T
-    at most the rig's weight) on an element of length L between
-    masses m acts at about c / (m L^2); at a body, c / I. Along a rope the
-    joint damping is a fourth difference (stencil 1, -4, 6, -4, 1), whose
-    row sum bounds the rate at 16 c / (m L^2).
-    """
-    a = model.arrays
-    if not a["has_joints"]:
-        return 0.0
-    gain = a["seg_bend_c"] + a["seg_link_mu"] * a["seg_link_r"] * _rig_weight(model) / a["friction_omega_eps"]
-    rate = 0.0
-    for e in range(model.n_elements):
-        s = a["el_seg"][e]
-        if gain[s] == 0.0:
-            continue
-        Le = rest[e]
-        for kind, idx in ((a["el_ka"][e], a["el_ia"][e]), (a["el_kb"][e], a["el_ib"][e])):
-            if kind == KIND_PARTICLE:
-                rate = max(rate, 16.0 * gain[s] / (m_part[idx] * Le**2))
-            elif kind == _kernel.KIND_BODY:
-                rate = max(rate, 4.0 * gain[s] / I_axes[idx].min())
-    return rate

@@ -1,0 +1,239 @@
+"""The diagnosis PDF: verdict, hypotheses, before/after overlays, fit profiles, mismatch map.
+
+Deterministic like the comparison report (``_report``): one font family,
+no dates, no pyplot state, so the same diagnosis gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import matplotlib
+import numpy as np
+from matplotlib.backends.backend_pdf import PdfPages
+from matplotlib.figure import Figure
+
+from ._compare import channel_kind
+from ._locate import LOWPASS_S, low_pass
+from ._report import REPORT_STYLE
+
+__all__ = ["write_report_pdf"]
+
+PAGE_SIZE = (8.27, 11.69)  # A4 portrait, inches
+DEG = 180.0 / math.pi
+PLOT = {"position": (1.0, "m"), "angle": (DEG, "deg")}
+RESID = {"position": (1000.0, "mm"), "angle": (DEG, "deg")}
+OVERLAY_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch", "drag_cluster.x", "spreader_bar.pitch",
+                    "hoist_cluster.z")
+TEXT_SIZE = 7.0
+LINES_PER_PAGE = 92
+
+
+def _f(x, spec=".3g"):
+    return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
+
+
+def _text_pages(pdf, title, lines):
+    for k in range(0, max(1, len(lines)), LINES_PER_PAGE):
+        fig = Figure(figsize=PAGE_SIZE)
+        fig.text(0.06, 0.96, title if k == 0 else f"{title} (continued)", fontsize=12, fontweight="bold", va="top")
+        y = 0.93
+        for line in lines[k : k + LINES_PER_PAGE]:
+            fig.text(0.05, y, line, family="monospace", fontsize=TEXT_SIZE, va="top")
+            y -= 0.0098
+        pdf.savefig(fig)
+
+
+def _wrap(text, width=110, indent="  "):
+    words, lines, line = text.split(), [], ""
+    for w in words:
+        if len(line) + len(w) + 1 > width:
+            lines.append(line)
+            line = indent + w
+        else:
+            line = f"{line} {w}" if line else w
+    return lines + ([line] if line else [])
+
+
+def _summary_lines(doc):
+    lines = [f"Verdict: {doc['verdict']}", ""]
+    lines += _wrap("Reason: " + doc["reason"]) + [""]
+    src = doc.get("source", {})
+    if src:
+        lines.append(f"Input: {src.get('input', '-')} ({src.get('kind', '-')}); maneuver: {src.get('maneuver', '-')}")
+        if src.get("calibration"):
+            lines.append(f"Calibration: {src['calibration']}")
+    al = doc["alignment"]
+    lines.append(f"Clock offset {al['time_offset']:+.4f} s (rope lengths), reels stop at {al['reels_stop']:.2f} s "
+                 f"({al['reels_stop_method']})")
+    for rope, r in al["ropes"].items():
+        lines.append(f"  {rope}: {1000 * r['residual_rms']:.1f} mm RMS about a {1000 * r['bias']:+.1f} mm bias "
+                     "(recording vs nominal simulation)")
+    nt = doc["null_test"]
+    lines += ["", f"Null test: held-out improvement threshold {nt['threshold']:.1f} (chi2 units): "
+                  f"{100 * nt['quantile']:.0f}th percentile of {nt['n_surrogates']} noise surrogates "
+                  f"({_f(nt['surrogate_quantile'])}), at least {nt['min_improvement']:g}", ""]
+    lines.append("Hypotheses, best first (held-out RMS in units of the measurement noise; 1 = noise):")
+    lines.append(f"{'mechanism':<22}{'parameter':>22}{'+-68%':>20}{'rms before':>11}{'after':>8}"
+                 f"{'improve':>11}{'score':>9}  sig  bound")
+    for h in doc["hypotheses"]:
+        p = h["main_parameter"]
+        u = h["uncertainty"]
+        band = "-" if not u.get("interval_68") else f"{_f(u['interval_68'][0])}..{_f(u['interval_68'][1])}"
+        lines.append(f"{h['name']:<22}{p + ' = ' + _f(h['parameters'][p], '.4g'):>22}{band:>20}"
+                     f"{h['rms_before']:>11.3f}{h['rms_after']:>8.3f}{h['improvement']:>11.1f}{h['score']:>9.2f}"
+                     f"  {'yes' if h['significant'] else 'no ':<4} {h['at_bound'] or '-'}")
+    for s in doc.get("skipped", []):
+        lines.append(f"{s['name']:<22} skipped: {s['reason']}")
+    lines += ["", "Where the nominal model misses (structured RMS over its threshold; >1 is beyond noise):"]
+    if not doc["mismatch"]:
+        lines.append("  nowhere: the residual is measurement noise")
+    for e in doc["mismatch"][:20]:
+        scale, unit = RESID[channel_kind(e["channel"])]
+        lines.append(f"  {e['channel']:<22}{e['window']:<12}{e['t_start']:6.2f}-{e['t_end']:5.2f} s  score "
+                     f"{e['score']:6.2f}  rms {scale * e['rms']:7.3f} {unit:<3} at {_f(e['frequency_hz'])} Hz")
+    after = doc["mismatch_after"]
+    lines += ["", f"Left after {after['model']}: {len(after['entries'])} channel windows beyond noise"]
+    for e in after["entries"][:10]:
+        lines.append(f"  {e['channel']:<22}{e['window']:<12} score {e['score']:6.2f}")
+    fd = doc["free_decay"]
+    lines += ["", f"Free decay {fd['t_start']:.2f}-{fd['t_end']:.2f} s: frequency (Hz) / damping ratio / envelope"]
+    lines.append(f"{'channel':<22}{'measured':>26}{'nominal':>26}{'fitted (' + str(fd['fitted_model']) + ')':>34}")
+    for ch, e in fd["channels"].items():
+        cells = []
+        for side in ("measured", "nominal", "fitted"):
+            r = e.get(side)
+            cells.append("-" if r is None or r.get("status") != "ok" else
+                         f"{_f(r['frequency_hz'])} / {_f(r['damping_ratio'])} / {r['shape'][:5]}")
+        lines.append(f"{ch:<22}{cells[0]:>26}{cells[1]:>26}{cells[2]:>34}")
+    lines += ["", f"{doc['timing']['simulations']} simulations (discretization "
+                  f"{doc['settings']['discretization']})"]
+    return lines
+
+
+def _overlay_pages(pdf, diag):
+    doc = diag.doc
+    best = doc["free_decay"]["fitted_model"]
+    fitted = diag.fitted.get(best)
+    chans = [c for c in OVERLAY_CHANNELS if c in diag.channels]
+    t = diag.time
+    dt = float(t[1] - t[0])
+    width = max(3, int(round(LOWPASS_S / dt)) | 1)
+    t_stop = doc["alignment"]["reels_stop"]
+    for k in range(0, len(chans), 3):
+        fig = Figure(figsize=PAGE_SIZE)
+        fig.suptitle(f"Before/after: nominal model and {best or 'no fitted mechanism'}", fontsize=11)
+        grid = fig.add_gridspec(6, 1, height_ratios=[2, 1] * 3, hspace=0.45, left=0.1, right=0.96, top=0.94,
+                                bottom=0.05)
+        for i, ch in enumerate(chans[k : k + 3]):
+            j = diag.channels.index(ch)
+            kind = channel_kind(ch)
+            ps, pu = PLOT[kind]
+            rs, ru = RESID[kind]
+            ax = fig.add_subplot(grid[2 * i])
+            ax.plot(t, ps * diag.measured[:, j], color="0.55", lw=0.6, label="measured")
+            ax.plot(t, ps * diag.nominal[:, j], color="tab:red", ls="--", lw=1.0, label="nominal")
+            if fitted is not None:
+                ax.plot(t, ps * fitted[:, j], color="tab:blue", lw=1.0, label=best)
+            ax.axvline(t_stop, color="k", lw=0.6, ls=":")
+            ax.set_ylabel(f"{ch} ({pu})")
+            ax.legend(loc="upper right", ncol=3)
+            ax2 = fig.add_subplot(grid[2 * i + 1], sharex=ax)
+            before = low_pass(diag.measured[:, j] - diag.nominal[:, j], width)
+            ax2.plot(t, rs * before, color="tab:red", lw=0.9, label="measured - nominal")
+            if fitted is not None:
+                after = low_pass(diag.measured[:, j] - fitted[:, j], width)
+                ax2.plot(t, rs * after, color="tab:blue", lw=0.9, label=f"measured - {best}")
+            thr = doc["channels"][ch]["structure_threshold"]
+            for sgn in (-1, 1):
+                ax2.axhline(sgn * rs * thr, color="0.4", lw=0.5, ls=":")
+            ax2.axvline(t_stop, color="k", lw=0.6, ls=":")
+            ax2.set_ylabel(f"residual ({ru})")
+            ax2.legend(loc="upper left", fontsize=6)
+        ax2.set_xlabel("time (s, simulation clock); dotted: reels stop; residuals low-passed over "
+                       f"{LOWPASS_S:g} s, dotted band: structure threshold")
+        pdf.savefig(fig)
+
+
+def _profile_page(pdf, doc):
+    hyps = [h for h in doc["hypotheses"] if h["profile"]]
+    if not hyps:
+        return
+    fig = Figure(figsize=PAGE_SIZE)
+    fig.suptitle("Fit profiles: chi2(p) - chi2(nominal) over each candidate's searched range", fontsize=11)
+    n = len(hyps)
+    for i, h in enumerate(hyps):
+        ax = fig.add_subplot(n, 1, i + 1)
+        nominal = h["rms_before"]  # held-out, only for the title
+        v = np.array([p["value"] for p in h["profile"]])
+        c = np.array([p["chi2"] for p in h["profile"]])
+        base = h.get("chi2_nominal")
+        y = c - (base if base is not None else c.max())
+        ax.semilogx(v, y, "o-", ms=3, color="tab:blue")
+        # symlog: the optimum's dip and the steep rise beyond it on one axis
+        ax.set_yscale("symlog", linthresh=max(h["threshold"], 1.0))
+        ax.axhline(-h["threshold"], color="0.4", lw=0.6, ls=":")
+        p = h["parameters"][h["main_parameter"]]
+        if p:
+            ax.axvline(p, color="tab:red", lw=0.8)
+        u = h["uncertainty"].get("interval_68")
+        if u:
+            ax.axvspan(u[0], u[1], color="tab:red", alpha=0.15)
+        ax.set_title(f"{h['name']}: {h['main_parameter']} = {_f(p, '.4g')}; held-out RMS {nominal:.3f} -> "
+                     f"{h['rms_after']:.3f} noise units; score {h['score']:.2f}", fontsize=8)
+        ax.set_ylabel("delta chi2 (dotted: -threshold)")
+    ax.set_xlabel("main parameter (DESIGN 7 units)")
+    fig.subplots_adjust(hspace=0.6, top=0.93, bottom=0.06)
+    pdf.savefig(fig)
+
+
+def _map_page(pdf, diag):
+    doc = diag.doc
+    windows = [w["window"] for w in doc["windows"]]
+    fig = Figure(figsize=PAGE_SIZE)
+    fig.suptitle("Mismatch map: structured residual RMS over threshold (>1: beyond noise)", fontsize=11)
+    for i, (key, title) in enumerate((("before", "nominal model"), ("after", doc["mismatch_after"]["model"]))):
+        entries = diag.located.get(key, [])
+        grid = np.full((len(diag.channels), len(windows)), np.nan)
+        for e in entries:
+            if e["window"] in windows:
+                grid[diag.channels.index(e["channel"]), windows.index(e["window"])] = e["score"]
+        ax = fig.add_subplot(2, 1, i + 1)
+        im = ax.imshow(np.log10(np.maximum(grid, 1e-2)), aspect="auto", cmap="viridis", vmin=-1, vmax=1.5)
+        for (r, c), val in np.ndenumerate(grid):
+            if np.isfinite(val):
+                ax.text(c, r, f"{val:.2g}", ha="center", va="center", fontsize=6,
+                        color="white" if val < 3 else "black")
+        ax.set_xticks(range(len(windows)))
+        ax.set_xticklabels(windows, fontsize=7)
+        ax.set_yticks(range(len(diag.channels)))
+        ax.set_yticklabels(diag.channels, fontsize=7)
+        ax.set_title(title, fontsize=9)
+        ax.grid(False)
+        fig.colorbar(im, ax=ax, label="log10 score")
+    pdf.savefig(fig)
+
+
+def write_report_pdf(path, diag):
+    """Write the diagnosis report of a ``Diagnosis`` atomically.
+
+    Pages: summary (verdict, hypotheses with uncertainty, mismatch, free
+    decay), before/after overlays of the key channels with low-passed
+    residuals, each candidate's fit profile, the mismatch map before and
+    after.
+    """
+    path = os.fspath(path)
+    tmp = f"{path}.tmp{os.getpid()}"
+    try:
+        with matplotlib.rc_context(REPORT_STYLE):
+            with PdfPages(tmp, metadata={"CreationDate": None, "ModDate": None,
+                                         "Title": "dragline diagnosis"}) as pdf:
+                _text_pages(pdf, "Dragline diagnosis: what physics does the model leave out?", _summary_lines(diag.doc))
+                _overlay_pages(pdf, diag)
+                _profile_page(pdf, diag.doc)
+                _map_page(pdf, diag)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)

@@ -1,0 +1,74 @@
+"""``dragline diagnose``: locate the mismatch, name the missing physics, fit it, show the fit improve."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+from dragline.compare._diagnose import diagnose_path, write_diagnosis_json, write_diagnosis_report
+from dragline.compare._hypotheses import candidate_list
+
+from ._options import check_output_path, discretization_from_args, rig_from_args
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "diagnose", help="find the physics the nominal model leaves out (JSON verdict, PDF report)",
+        description="Compare a recording with the nominal model of its maneuver, locate the mismatch (bodies, "
+                    "quantities, time windows, frequencies, free decay), fit every optional mechanism through "
+                    "the simulator, score each on held-out data against what measurement noise alone gives, and "
+                    "name one, 'none' (the model fits within noise) or 'unexplained'.")
+    p.add_argument("input", metavar="SESSION_DIR|capture.mcap|export.csv|MEASURED.csv",
+                   help="a session, a VICON-style marker CSV or a measured trajectory table")
+    p.add_argument("--maneuver", default=None, metavar="dig|FILE.csv",
+                   help="reel table of the recording (default: the session's; for a CSV, maneuver.csv beside "
+                        "it, else the dig maneuver); always checked against the recorded rope lengths")
+    p.add_argument("--calibration", metavar="cameras.json",
+                   help="camera calibration of a session (default: cameras.json in it, else calibrated from "
+                        "its L-frame and wand takes)")
+    p.add_argument("--rig", metavar="FILE", help="rig TOML file (default: the built-in 1/16-scale rig)")
+    p.add_argument("--discretization", default="baseline", metavar="LEVEL|ROPE=N,...",
+                   help="discretization of every simulation (default baseline)")
+    p.add_argument("--candidates", metavar="NAME,...",
+                   help="mechanisms to try (default: every mechanism the simulator has)")
+    p.add_argument("--workers", type=int, default=2, metavar="N", help="simulation processes (default 2)")
+    p.add_argument("--seed", type=int, default=0, metavar="N", help="seeds the null test's surrogates (default 0)")
+    p.add_argument("--json", required=True, metavar="DIAGNOSIS.json", help="diagnosis to write")
+    p.add_argument("--report", metavar="REPORT.pdf", help="PDF report to write")
+    p.add_argument("--quiet", action="store_true", help="print nothing on success")
+
+
+def run(args):
+    outputs = [p for p in (args.json, args.report) if p]
+    for path in outputs:
+        check_output_path(path)
+    if args.report and args.report == args.json:
+        raise ValueError("--json and --report must name different files")
+    if args.workers < 1:
+        raise ValueError("--workers must be at least 1")
+    names = None
+    if args.candidates:
+        names = [n.strip() for n in args.candidates.split(",") if n.strip()]
+        candidate_list(names)  # unknown names: exit 2 before any work
+    rig = rig_from_args(args)
+    discretization = discretization_from_args(args)
+    say = (lambda msg: None) if args.quiet else (lambda msg: print(f"dragline: {msg}", file=sys.stderr))
+    t0 = time.perf_counter()
+    result = diagnose_path(args.input, maneuver=args.maneuver, rig=rig, calibration=args.calibration,
+                           discretization=discretization, candidates=names, workers=args.workers,
+                           seed=args.seed, progress=say)
+    write_diagnosis_json(args.json, result.doc)
+    if args.report:
+        write_diagnosis_report(args.report, result)
+    if not args.quiet:
+        doc = result.doc
+        top = doc["hypotheses"][0] if doc["hypotheses"] else None
+        fit = ""
+        if doc["verdict"] not in ("none", "unexplained") and top is not None:
+            p = top["main_parameter"]
+            u = top["uncertainty"].get("std")
+            fit = f" ({p} = {top['parameters'][p]:.4g}" + (f" +- {u:.2g})" if u is not None else ")")
+        print(f"verdict: {doc['verdict']}{fit}; {doc['reason']}", file=sys.stderr)
+        print(f"{doc['timing']['simulations']} simulations in {time.perf_counter() - t0:.0f} s; wrote "
+              + " and ".join(outputs), file=sys.stderr)
+    return 0

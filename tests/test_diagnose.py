@@ -1,0 +1,253 @@
+"""``dragline diagnose``: locate, fit, decide (dragline.compare._diagnose and friends).
+
+Ground truth is built, not copied: measured tables are simulations with a
+known mechanism (or none) plus white noise of a known level, or with a
+mismatch no mechanism can make (a sinusoid at an unrelated frequency).
+The candidate list is cut to aero_drag and pulley_inertia (the cheap ones)
+to keep the file fast; the full list runs in ``dragline bench discovery``.
+"""
+
+import json
+import math
+import os
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dragline.compare._diagnose import diagnose, load_recording
+from dragline.compare._hypotheses import Problem, null_threshold
+from dragline.compare._locate import DYNAMIC_CHANNELS, low_pass, noise_level, time_windows
+from dragline.pipelines.cli import main
+from dragline.simulate import (
+    dig_maneuver,
+    marker_positions,
+    parse_physics,
+    simulate,
+    write_maneuver_csv,
+    write_trajectory_csv,
+)
+
+CANDIDATES = ["aero_drag", "pulley_inertia"]
+NOISE = {"position": 5e-4, "angle": 5e-3}  # what the lab's reconstruction gives (m, rad)
+CD_TRUE = 8.0
+
+
+def noisy(table, seed):
+    """The table with white noise on every channel, reel and tension columns dropped."""
+    rng = np.random.default_rng(seed)
+    out = table[[c for c in table.columns if "reel_length" not in c and "tension" not in c]].copy()
+    for c in out.columns:
+        if c != "time":
+            angle = c.rsplit(".", 1)[1] in ("roll", "pitch", "yaw", "p", "q", "r")
+            out[c] = out[c] + rng.normal(0.0, NOISE["angle" if angle else "position"], len(out))
+    return out
+
+
+@pytest.fixture(scope="module")
+def nominal_run():
+    return simulate()
+
+
+@pytest.fixture(scope="module")
+def nominal_measured(nominal_run):
+    return noisy(nominal_run.table, seed=11)
+
+
+@pytest.fixture(scope="module")
+def nominal_diagnosis(nominal_measured):
+    return diagnose(nominal_measured, candidates=CANDIDATES, workers=2)
+
+
+@pytest.fixture(scope="module")
+def aero_diagnosis(nominal_run):
+    run = simulate(physics=[parse_physics(f"aero_drag:cd={CD_TRUE}")], initial_state=nominal_run.states[0])
+    return diagnose(noisy(run.table, seed=12), candidates=CANDIDATES, workers=2)
+
+
+# ---------------------------------------------------------------- locate
+
+def test_noise_level_recovers_white_noise_under_a_swing():
+    t = np.arange(2000) / 200.0
+    rng = np.random.default_rng(0)
+    swing = 0.3 * np.sin(2 * np.pi * 0.6 * t) + 0.1 * t
+    for sigma in (2e-4, 1e-3, 5e-3):
+        est = noise_level(swing + rng.normal(0, sigma, t.size), "position")
+        assert abs(est / sigma - 1) < 0.06
+
+
+def test_low_pass_passes_a_swing_and_shrinks_noise():
+    t = np.arange(4000) / 200.0
+    rng = np.random.default_rng(1)
+    swing = np.sin(2 * np.pi * 0.6 * t)
+    noise = rng.normal(0, 1.0, t.size)
+    lp = low_pass(np.column_stack([swing, noise]), 21)
+    inner = slice(50, -50)
+    assert np.max(np.abs(lp[inner, 0] - swing[inner])) < 0.03  # 0.6 Hz through a 0.1 s average
+    assert abs(np.std(lp[inner, 1]) - 1 / math.sqrt(21)) < 0.02
+
+
+def test_time_windows_follow_the_dig_maneuver_phases():
+    windows = time_windows(dig_maneuver(), 6.5, 10.0)
+    assert [(round(a, 6), round(b, 6)) for _, a, b in windows] == [(0, 2.5), (2.5, 3.5), (3.5, 5.5), (5.5, 6.5),
+                                                                   (6.5, 10.0)]
+    assert windows[-1][0] == "free decay"
+
+
+def test_surrogate_null_matches_independent_noise():
+    """The phase-randomised null reproduces the held-out 'improvement' of truly independent noise."""
+    n, c = 2000, 3
+    t = np.arange(n) / 200.0
+    sigma = np.ones(c)
+    problem = Problem(t, np.zeros((n, c)), sigma, t_stop=6.5)
+    signature = np.column_stack([np.sin(2 * np.pi * 0.6 * t) * np.exp(-0.2 * t)] * c)
+    rng = np.random.default_rng(5)
+    A, B = problem.folds["A"], problem.folds["B"]
+    w = np.sqrt(problem.W)
+    g = signature * w
+    draws = []
+    for _ in range(2000):  # fresh noise each time: the null the surrogates stand for
+        z = rng.normal(0, 1, (n, c)) * w
+        gA, gB = (g[A] * z[A]).sum(), (g[B] * z[B]).sum()
+        aA, aB = max(gA / (g[A] ** 2).sum(), 0), max(gB / (g[B] ** 2).sum(), 0)
+        draws.append(2 * aA * gB - aA**2 * (g[B] ** 2).sum() + 2 * aB * gA - aB**2 * (g[A] ** 2).sum())
+    truth = float(np.quantile(draws, 0.99))
+    _, q = null_threshold(problem, rng.normal(0, 1, (n, c)), [signature], seed=3, n_surrogates=2000)
+    assert truth > 0
+    assert abs(q / truth - 1) < 0.3
+
+
+# ---------------------------------------------------------------- verdicts
+
+def test_nominal_plus_noise_is_none(nominal_diagnosis):
+    doc = nominal_diagnosis.doc
+    assert doc["verdict"] == "none", doc["reason"]
+    assert doc["mismatch"] == []
+    # The noise levels found in the data are the ones put in.
+    for ch, entry in doc["channels"].items():
+        kind = "angle" if ch.endswith("pitch") else "position"
+        assert abs(entry["noise"] / NOISE[kind] - 1) < 0.1
+    # Held-out RMS of the nominal model is the noise itself (1 in noise units).
+    assert all(abs(h["rms_before"] - 1) < 0.05 for h in doc["hypotheses"])
+
+
+def test_strong_aero_drag_is_named_with_its_coefficient(aero_diagnosis):
+    doc = aero_diagnosis.doc
+    assert doc["verdict"] == "aero_drag", doc["reason"]
+    best = doc["hypotheses"][0]
+    assert best["name"] == "aero_drag"
+    cd = best["parameters"]["cd"]
+    assert abs(cd / CD_TRUE - 1) < 0.25
+    assert best["significant"] and best["score"] > 1
+    # Before/after on held-out data: from a structured mismatch down to the noise.
+    assert best["rms_before"] > 1.5 and abs(best["rms_after"] - 1) < 0.05
+    # The stated uncertainty covers the truth (3 standard deviations).
+    u = best["uncertainty"]
+    assert u["std"] is not None and abs(cd - CD_TRUE) < 3 * u["std"] + 0.01 * CD_TRUE
+    # The mismatch was located in the free decay, where drag acts without the reels.
+    assert doc["mismatch"] and any(e["window"] == "free decay" for e in doc["mismatch"][:5])
+    assert doc["mismatch_after"]["entries"] == []
+
+
+def test_hypotheses_are_ranked_best_first(aero_diagnosis, nominal_diagnosis):
+    for doc in (aero_diagnosis.doc, nominal_diagnosis.doc):
+        gains = [h["improvement"] for h in doc["hypotheses"]]
+        assert gains == sorted(gains, reverse=True)
+        assert {h["name"] for h in doc["hypotheses"]} == set(CANDIDATES)
+
+
+def test_mismatch_no_candidate_can_make_is_unexplained(nominal_run):
+    table = noisy(nominal_run.table, seed=13)
+    t = table["time"].to_numpy()
+    # A 3 mm vibration at 3.7 Hz: no swing mode of the rig, no mechanism makes it.
+    table["bucket.z"] = table["bucket.z"] + 0.003 * np.sin(2 * np.pi * 3.7 * t)
+    table["bucket.x"] = table["bucket.x"] + 0.003 * np.cos(2 * np.pi * 3.7 * t)
+    doc = diagnose(table, candidates=CANDIDATES, workers=2).doc
+    assert doc["verdict"] == "unexplained", doc["reason"]
+    located = doc["mismatch"]
+    assert located and {e["channel"] for e in located} <= {"bucket.x", "bucket.z"}
+    assert all(abs(e["frequency_hz"] - 3.7) < 0.3 for e in located)
+
+
+# ---------------------------------------------------------------- command line
+
+def test_cli_writes_json_and_report(tmp_path, nominal_measured):
+    meas = tmp_path / "measured.csv"
+    write_trajectory_csv(meas, nominal_measured)
+    out, pdf = tmp_path / "diag.json", tmp_path / "diag.pdf"
+    assert main(["diagnose", str(meas), "--json", str(out), "--report", str(pdf), "--candidates", "aero_drag",
+                 "--quiet"]) == 0
+    doc = json.loads(out.read_text())
+    for key in ("verdict", "reason", "mismatch", "hypotheses", "free_decay", "null_test", "channels"):
+        assert key in doc
+    assert doc["verdict"] in ("none", "unexplained", "aero_drag")
+    h = doc["hypotheses"][0]
+    for key in ("name", "parameters", "rms_before", "rms_after", "score", "uncertainty"):
+        assert key in h
+    assert set(doc["free_decay"]["channels"]["bucket.x"]) >= {"measured", "nominal"}
+    assert pdf.read_bytes().startswith(b"%PDF")
+    assert not [p for p in os.listdir(tmp_path) if ".tmp" in p]
+
+
+def _error_line(capsys):
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("dragline: error:")
+    return err[0]
+
+
+def test_cli_bad_inputs_exit_2_with_one_line(tmp_path, nominal_measured, nominal_run, capsys):
+    out = str(tmp_path / "d.json")
+    short = tmp_path / "short.csv"
+    write_trajectory_csv(short, nominal_measured[nominal_measured["time"] <= 7.5])
+    assert main(["diagnose", str(short), "--json", out]) == 2
+    assert "free decay" in _error_line(capsys)
+
+    other = tmp_path / "other.csv"
+    write_trajectory_csv(other, nominal_measured[[c for c in nominal_measured.columns if not c.startswith("bucket")]])
+    assert main(["diagnose", str(other), "--json", out]) == 2
+    assert "bucket" in _error_line(capsys)
+
+    meas = tmp_path / "m.csv"
+    write_trajectory_csv(meas, nominal_measured)
+    dig = dig_maneuver()
+    wrong = tmp_path / "wrong.csv"
+    # Drag winds in evenly instead of in four phases: same start and end.
+    write_maneuver_csv(wrong, type(dig)(dig.time, dig.hoist_length, np.linspace(4.2, dig.drag_length[-1], 5)))
+    assert main(["diagnose", str(meas), "--maneuver", str(wrong), "--json", out]) == 2
+    assert "does not match the recorded rope lengths" in _error_line(capsys)
+
+    assert main(["diagnose", str(meas), "--json", out, "--candidates", "magic"]) == 2
+    assert "unknown mechanism" in _error_line(capsys)
+    assert main(["diagnose", str(tmp_path / "nothing.csv"), "--json", out]) == 2
+    _error_line(capsys)
+    assert not os.path.exists(out)
+
+
+def test_marker_export_of_another_rig_exits_2(tmp_path, nominal_run, capsys):
+    from dragline.capture import write_vicon_csv
+
+    names, points = marker_positions(nominal_run)
+    keep = [k for k, n in enumerate(names) if not n.startswith("bucket")]
+    csv = tmp_path / "markers.csv"
+    write_vicon_csv(csv, [names[k].replace(".", ":", 1) for k in keep], points[:, keep], 200.0)
+    with pytest.raises(ValueError, match="missing"):
+        load_recording(csv)
+    assert main(["diagnose", str(csv), "--json", str(tmp_path / "d.json")]) == 2
+    assert "missing" in _error_line(capsys)
+
+
+def test_session_directory_is_diagnosed_from_the_motion_alone(tmp_path, nominal_run):
+    """A synthesised session (cameras, noise, occlusion, wand calibration) of the nominal model: "none"."""
+    from dragline.capture import synthesize_session
+    from dragline.capture._lab import default_lab_cameras
+    from dragline.capture._session_io import write_session_dir
+
+    session, _ = synthesize_session(nominal_run, default_lab_cameras(4), seed=4)
+    folder = tmp_path / "session"
+    write_session_dir(folder, session, nominal_run.model.maneuver)
+    table, maneuver, source = load_recording(folder)
+    assert source["kind"] == "session" and "calibrated" in source["calibration"]
+    assert np.allclose(maneuver.drag_length, dig_maneuver().drag_length)
+    doc = diagnose(table, maneuver, candidates=["aero_drag"], workers=2).doc
+    assert doc["verdict"] == "none", doc["reason"]
+    assert pd.Series([e["noise"] for e in doc["channels"].values()]).max() < 0.02
