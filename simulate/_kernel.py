@@ -440,65 +440,54 @@ def dissipate(t, y, dt, m, work):
 
 
 @njit(cache=True, inline="always")
-def _inverse_mass(kind, idx, arm0, arm1, arm2, y, m, Lseg, o_part):
+def _inverse_mass(kind, idx, arm0, arm1, arm2, part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg):
     """1/m of an element end for a bending impulse; a body end adds its rotation."""
     if kind == KIND_PARTICLE:
-        s = m[5][idx]
-        return m[23][s] / (m[24][s] * Lseg[s])
+        s = part_seg[idx]
+        return seg_npart[s] / (seg_rho[s] * Lseg[s])
     if kind == KIND_BODY:
-        I = m[2]
-        imin = min(I[idx, 0, 0], min(I[idx, 1, 1], I[idx, 2, 2]))
-        return 1.0 / m[1][idx] + (arm0 * arm0 + arm1 * arm1 + arm2 * arm2) / imin
+        imin = min(body_I[idx, 0, 0], min(body_I[idx, 1, 1], body_I[idx, 2, 2]))
+        return 1.0 / body_mass[idx] + (arm0 * arm0 + arm1 * arm1 + arm2 * arm2) / imin
     return 0.0
 
 
 @njit(cache=True, inline="always")
-def _kick(kind, idx, arm0, arm1, arm2, jx, jy, jz, y, m, T, Lseg, o_part, o_vel):
+def _turn(b, hx, hy, hz, y, body_Iinv, T):
+    """Apply an angular impulse (N m s, inertial axes) to body b's rates."""
+    bx = T[b, 0, 0] * hx + T[b, 1, 0] * hy + T[b, 2, 0] * hz
+    by = T[b, 0, 1] * hx + T[b, 1, 1] * hy + T[b, 2, 1] * hz
+    bz = T[b, 0, 2] * hx + T[b, 1, 2] * hy + T[b, 2, 2] * hz
+    o = 12 * b
+    y[o + 9] += body_Iinv[b, 0, 0] * bx + body_Iinv[b, 0, 1] * by + body_Iinv[b, 0, 2] * bz
+    y[o + 10] += body_Iinv[b, 1, 0] * bx + body_Iinv[b, 1, 1] * by + body_Iinv[b, 1, 2] * bz
+    y[o + 11] += body_Iinv[b, 2, 0] * bx + body_Iinv[b, 2, 1] * by + body_Iinv[b, 2, 2] * bz
+
+
+@njit(cache=True, inline="always")
+def _kick(kind, idx, arm0, arm1, arm2, jx, jy, jz, y, part_seg, seg_npart, seg_rho, body_mass, body_Iinv, T, Lseg, o_vel):
     """Apply a linear impulse (N s) at an element end: particle or body point."""
     if kind == KIND_PARTICLE:
-        s = m[5][idx]
-        inv = m[23][s] / (m[24][s] * Lseg[s])
+        s = part_seg[idx]
+        inv = seg_npart[s] / (seg_rho[s] * Lseg[s])
         y[o_vel + 3 * idx] += jx * inv
         y[o_vel + 3 * idx + 1] += jy * inv
         y[o_vel + 3 * idx + 2] += jz * inv
     elif kind == KIND_BODY:
         o = 12 * idx
-        invm = 1.0 / m[1][idx]
+        invm = 1.0 / body_mass[idx]
         y[o + 3] += jx * invm
         y[o + 4] += jy * invm
         y[o + 5] += jz * invm
-        _turn(idx, arm1 * jz - arm2 * jy, arm2 * jx - arm0 * jz, arm0 * jy - arm1 * jx, y, m, T)
-
-
-@njit(cache=True, inline="always")
-def _turn(b, hx, hy, hz, y, m, T):
-    """Apply an angular impulse (N m s, inertial axes) to body b's rates."""
-    Ii = m[3]
-    bx = T[b, 0, 0] * hx + T[b, 1, 0] * hy + T[b, 2, 0] * hz
-    by = T[b, 0, 1] * hx + T[b, 1, 1] * hy + T[b, 2, 1] * hz
-    bz = T[b, 0, 2] * hx + T[b, 1, 2] * hy + T[b, 2, 2] * hz
-    o = 12 * b
-    y[o + 9] += Ii[b, 0, 0] * bx + Ii[b, 0, 1] * by + Ii[b, 0, 2] * bz
-    y[o + 10] += Ii[b, 1, 0] * bx + Ii[b, 1, 1] * by + Ii[b, 1, 2] * bz
-    y[o + 11] += Ii[b, 2, 0] * bx + Ii[b, 2, 1] * by + Ii[b, 2, 2] * bz
-
-
-@njit(cache=True, inline="always")
-def _element_rate(e, y, m, T, fpos, fvel, el_u, el_len, o_part, o_vel):
-    """Angular velocity (inertial) of element e from the current velocities."""
-    _, _, _, vxa, vya, vza, _, _, _ = _node(m[8][e], m[9][e], m[10], e, y, T, fpos, fvel, o_part, o_vel)
-    _, _, _, vxb, vyb, vzb, _, _, _ = _node(m[11][e], m[12][e], m[13], e, y, T, fpos, fvel, o_part, o_vel)
-    dvx, dvy, dvz = vxb - vxa, vyb - vya, vzb - vza
-    ux, uy, uz = el_u[e, 0], el_u[e, 1], el_u[e, 2]
-    inv = 1.0 / el_len[e]
-    return (uy * dvz - uz * dvy) * inv, (uz * dvx - ux * dvz) * inv, (ux * dvy - uy * dvx) * inv
+        _turn(idx, arm1 * jz - arm2 * jy, arm2 * jx - arm0 * jz, arm0 * jy - arm1 * jx, y, body_Iinv, T)
 
 
 @njit(cache=True)
 def _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o_part, o_vel):
     joint_a, joint_b, joint_seg = m[35], m[36], m[37]
     seg_bend_c, seg_link_mu, seg_link_r = m[38], m[39], m[44]
-    el_ka, el_ia, el_kb, el_ib = m[8], m[9], m[11], m[12]
+    el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m[8], m[9], m[10], m[11], m[12], m[13]
+    part_seg, seg_npart, seg_rho = m[5], m[23], m[24]
+    body_mass, body_I, body_Iinv = m[1], m[2], m[3]
     for j in range(joint_b.shape[0]):
         s = joint_seg[j]
         c = seg_bend_c[s]
@@ -507,15 +496,29 @@ def _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o
             continue
         e2 = joint_b[j]
         e1 = joint_a[j]
-        w2x, w2y, w2z = _element_rate(e2, y, m, T, fpos, fvel, el_u, el_len, o_part, o_vel)
+        # angular velocity of e2 from the current velocities (earlier joints moved them)
+        _, _, _, vxa, vya, vza, _, _, _ = _node(el_ka[e2], el_ia[e2], el_ra, e2, y, T, fpos, fvel, o_part, o_vel)
+        _, _, _, vxb, vyb, vzb, _, _, _ = _node(el_kb[e2], el_ib[e2], el_rb, e2, y, T, fpos, fvel, o_part, o_vel)
+        u2x, u2y, u2z = el_u[e2, 0], el_u[e2, 1], el_u[e2, 2]
         L2 = el_len[e2]
-        w = (_inverse_mass(el_ka[e2], el_ia[e2], el_arm[e2, 0], el_arm[e2, 1], el_arm[e2, 2], y, m, Lseg, o_part)
-             + _inverse_mass(el_kb[e2], el_ib[e2], el_arm[e2, 3], el_arm[e2, 4], el_arm[e2, 5], y, m, Lseg, o_part)) / (L2 * L2)
+        w2x = (u2y * (vzb - vza) - u2z * (vyb - vya)) / L2
+        w2y = (u2z * (vxb - vxa) - u2x * (vzb - vza)) / L2
+        w2z = (u2x * (vyb - vya) - u2y * (vxb - vxa)) / L2
+        w = (_inverse_mass(el_ka[e2], el_ia[e2], el_arm[e2, 0], el_arm[e2, 1], el_arm[e2, 2], part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg)
+             + _inverse_mass(el_kb[e2], el_ib[e2], el_arm[e2, 3], el_arm[e2, 4], el_arm[e2, 5], part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg)) / (L2 * L2)
+        b = 0
+        L1 = 1.0
+        u1x, u1y, u1z = 0.0, 0.0, 0.0
         if e1 >= 0:
-            w1x, w1y, w1z = _element_rate(e1, y, m, T, fpos, fvel, el_u, el_len, o_part, o_vel)
+            _, _, _, vxa, vya, vza, _, _, _ = _node(el_ka[e1], el_ia[e1], el_ra, e1, y, T, fpos, fvel, o_part, o_vel)
+            _, _, _, vxb, vyb, vzb, _, _, _ = _node(el_kb[e1], el_ib[e1], el_rb, e1, y, T, fpos, fvel, o_part, o_vel)
+            u1x, u1y, u1z = el_u[e1, 0], el_u[e1, 1], el_u[e1, 2]
             L1 = el_len[e1]
-            w += (_inverse_mass(el_ka[e1], el_ia[e1], el_arm[e1, 0], el_arm[e1, 1], el_arm[e1, 2], y, m, Lseg, o_part)
-                  + _inverse_mass(el_kb[e1], el_ib[e1], el_arm[e1, 3], el_arm[e1, 4], el_arm[e1, 5], y, m, Lseg, o_part)) / (L1 * L1)
+            w1x = (u1y * (vzb - vza) - u1z * (vyb - vya)) / L1
+            w1y = (u1z * (vxb - vxa) - u1x * (vzb - vza)) / L1
+            w1z = (u1x * (vyb - vya) - u1y * (vxb - vxa)) / L1
+            w += (_inverse_mass(el_ka[e1], el_ia[e1], el_arm[e1, 0], el_arm[e1, 1], el_arm[e1, 2], part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg)
+                  + _inverse_mass(el_kb[e1], el_ib[e1], el_arm[e1, 3], el_arm[e1, 4], el_arm[e1, 5], part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg)) / (L1 * L1)
             tension = 0.5 * (el_T[e1] + el_T[e2])
         else:
             b = -e1 - 1
@@ -523,10 +526,8 @@ def _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o
             w1x = T[b, 0, 0] * p + T[b, 0, 1] * q + T[b, 0, 2] * r
             w1y = T[b, 1, 0] * p + T[b, 1, 1] * q + T[b, 1, 2] * r
             w1z = T[b, 2, 0] * p + T[b, 2, 1] * q + T[b, 2, 2] * r
-            I = m[2]
-            w += 1.0 / min(I[b, 0, 0], min(I[b, 1, 1], I[b, 2, 2]))
+            w += 1.0 / min(body_I[b, 0, 0], min(body_I[b, 1, 1], body_I[b, 2, 2]))
             tension = el_T[e2]
-        u2x, u2y, u2z = el_u[e2, 0], el_u[e2, 1], el_u[e2, 2]
         rx, ry, rz = w2x - w1x, w2y - w1y, w2z - w1z
         along = rx * u2x + ry * u2y + rz * u2z  # a rope carries no torsion
         rx, ry, rz = rx - along * u2x, ry - along * u2y, rz - along * u2z
@@ -537,25 +538,22 @@ def _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o
         if mu > 0.0 and tension > 0.0:
             speed = np.sqrt(rx * rx + ry * ry + rz * rz)
             if speed > 0.0:
-                cap = mu * seg_link_r[s] * tension * dt
-                stop = speed / w
-                f = min(stop, cap) / speed
+                f = min(speed / w, mu * seg_link_r[s] * tension * dt) / speed
                 hx, hy, hz = hx - f * rx, hy - f * ry, hz - f * rz
         # the angular impulse on e2 as the linear couple (H x u2) / L2 at its ends
         jx = (hy * u2z - hz * u2y) / L2
         jy = (hz * u2x - hx * u2z) / L2
         jz = (hx * u2y - hy * u2x) / L2
-        _kick(el_kb[e2], el_ib[e2], el_arm[e2, 3], el_arm[e2, 4], el_arm[e2, 5], jx, jy, jz, y, m, T, Lseg, o_part, o_vel)
-        _kick(el_ka[e2], el_ia[e2], el_arm[e2, 0], el_arm[e2, 1], el_arm[e2, 2], -jx, -jy, -jz, y, m, T, Lseg, o_part, o_vel)
+        _kick(el_kb[e2], el_ib[e2], el_arm[e2, 3], el_arm[e2, 4], el_arm[e2, 5], jx, jy, jz, y, part_seg, seg_npart, seg_rho, body_mass, body_Iinv, T, Lseg, o_vel)
+        _kick(el_ka[e2], el_ia[e2], el_arm[e2, 0], el_arm[e2, 1], el_arm[e2, 2], -jx, -jy, -jz, y, part_seg, seg_npart, seg_rho, body_mass, body_Iinv, T, Lseg, o_vel)
         if e1 >= 0:
-            u1x, u1y, u1z = el_u[e1, 0], el_u[e1, 1], el_u[e1, 2]
             jx = -(hy * u1z - hz * u1y) / L1
             jy = -(hz * u1x - hx * u1z) / L1
             jz = -(hx * u1y - hy * u1x) / L1
-            _kick(el_kb[e1], el_ib[e1], el_arm[e1, 3], el_arm[e1, 4], el_arm[e1, 5], jx, jy, jz, y, m, T, Lseg, o_part, o_vel)
-            _kick(el_ka[e1], el_ia[e1], el_arm[e1, 0], el_arm[e1, 1], el_arm[e1, 2], -jx, -jy, -jz, y, m, T, Lseg, o_part, o_vel)
+            _kick(el_kb[e1], el_ib[e1], el_arm[e1, 3], el_arm[e1, 4], el_arm[e1, 5], jx, jy, jz, y, part_seg, seg_npart, seg_rho, body_mass, body_Iinv, T, Lseg, o_vel)
+            _kick(el_ka[e1], el_ia[e1], el_arm[e1, 0], el_arm[e1, 1], el_arm[e1, 2], -jx, -jy, -jz, y, part_seg, seg_npart, seg_rho, body_mass, body_Iinv, T, Lseg, o_vel)
         else:
-            _turn(b, -hx, -hy, -hz, y, m, T)
+            _turn(b, -hx, -hy, -hz, y, body_Iinv, T)
 
 
 def make_work(m):
