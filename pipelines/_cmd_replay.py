@@ -22,5 +22,5 @@ def run(args):
 
     if not Path(args.mcap).is_file():
         raise ValueError(f"{args.mcap}: no such file")
-    args.source, args.seed = args.mcap, 0
+    args.source, args.seed, args.config, args.verbose = args.mcap, 0, None, False
     return _cmd_run.run(args)

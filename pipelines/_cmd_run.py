@@ -13,8 +13,10 @@ def add_parser(sub):
                    help="a capture to process (default: the built-in synthetic session)")
     p.add_argument("--out", default="dragline-out", metavar="OUT_DIR", help="output directory (default ./dragline-out)")
     p.add_argument("--maneuver", metavar="dig|FILE.csv", help="reel table (default: the session's own)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the built-in session")
+    p.add_argument("--config", metavar="FILE.toml", help="stage options (see the README's Configuration)")
+    p.add_argument("--seed", type=int, default=None, help="seed of the built-in session (default 0)")
     p.add_argument("--no-study", action="store_true", help="skip the discretization study (Fig. 21)")
+    p.add_argument("--verbose", action="store_true", help="print each stage's time as it ends")
     p.add_argument("--force", action="store_true", help="replace a non-empty output directory")
     p.add_argument("--quiet", action="store_true", help="print only the final summary")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -23,13 +25,16 @@ def add_parser(sub):
 def run(args):
     from dragline.simulate import dig_maneuver, read_maneuver_csv
 
-    from ._run import run_pipeline
+    from ._run import DEFAULTS, read_config, run_pipeline
 
+    config = read_config(args.config) if getattr(args, "config", None) else {k: dict(v) for k, v in DEFAULTS.items()}
     maneuver = None
     if args.maneuver:
         maneuver = dig_maneuver() if args.maneuver == "dig" else read_maneuver_csv(args.maneuver)
-    summary = run_pipeline(args.source, args.out, seed=args.seed, maneuver=maneuver, study=not args.no_study,
-                           quiet=args.quiet, force=args.force)
+    seed = args.seed if args.seed is not None else int(config["run"]["seed"])
+    study = config["run"]["study"] and not args.no_study
+    summary = run_pipeline(args.source, args.out, seed=seed, maneuver=maneuver, study=study, quiet=args.quiet,
+                           force=args.force, config=config, verbose=getattr(args, "verbose", False))
     if args.json:
         print(json.dumps(summary, indent=2, default=float))
         return 0

@@ -29,23 +29,75 @@ BUILTIN_HIDDEN_PHYSICS = "pulley_friction:mu=0.02"
 BUILTIN_DURATION_S = 12.0  # 5.5 s of free decay after the reels stop at 6.5 s
 
 
-class _Stages:
-    """Times each stage and reports progress on stderr."""
+# Options a --config file may set, with their defaults (README: "Configuration").
+DEFAULTS = {
+    "run": {"seed": 0, "study": True},
+    "simulate": {"rig": None, "maneuver": None, "discretization": "baseline"},
+    "reconstruct": {"method": "paper", "smoothing": "running_average", "max_gap": 10},
+}
 
-    def __init__(self, quiet):
-        self.quiet = quiet
+
+def read_config(path):
+    """Read a ``dragline run --config`` TOML file over the defaults.
+
+    Raises
+    ------
+    ValueError
+        Unreadable file, unknown section or key.
+    """
+    import tomllib
+
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except OSError as exc:
+        raise ValueError(f"cannot read config {path}: {exc.strerror}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"config {path} is not valid TOML: {exc}") from None
+    config = {section: dict(values) for section, values in DEFAULTS.items()}
+    for section, values in doc.items():
+        if section not in DEFAULTS or not isinstance(values, dict):
+            raise ValueError(f"config {path}: unknown section [{section}] (has {', '.join(DEFAULTS)})")
+        for key, value in values.items():
+            if key not in DEFAULTS[section]:
+                raise ValueError(f"config {path}: unknown key {key!r} in [{section}]")
+            config[section][key] = value
+    return config
+
+
+class _Stages:
+    """Times each stage and shows progress on stderr (a bar on a terminal)."""
+
+    def __init__(self, quiet, verbose=False, total=8):
+        self.quiet, self.verbose = quiet, verbose
         self.times = {}
+        self.bar = None
+        if not quiet and sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, file=sys.stderr, unit="stage", leave=False)
 
     def __call__(self, name, fn, *args, **kwargs):
-        if not self.quiet:
+        if self.bar is not None:
+            self.bar.set_description(name)
+        elif not self.quiet:
             print(f"[dragline] {name} ...", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         out = fn(*args, **kwargs)
         self.times[name] = time.perf_counter() - t0
+        if self.bar is not None:
+            self.bar.update(1)
+        if self.verbose:
+            print(f"[dragline] {name}: {self.times[name]:.1f} s", file=sys.stderr, flush=True)
         return out
 
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
 
-def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False, force=False):
+
+def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False, force=False, config=None,
+                 verbose=False):
     """Run every stage and write the outputs into ``out_dir``.
 
     Parameters
@@ -61,6 +113,9 @@ def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False
         Reel table; by default the session's own (the dig for a CSV export).
     study : bool
         Include the discretization study (the paper's Fig. 21) in the report.
+    config : dict, optional
+        Stage options (``read_config``); ``seed``, ``maneuver`` and ``study``
+        given as arguments take precedence.
 
     Returns
     -------
@@ -76,24 +131,31 @@ def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False
     tmp = parent / f".{out.name}.partial-{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
+    config = config or {section: dict(values) for section, values in DEFAULTS.items()}
+    stages = _Stages(quiet, verbose)
     try:
-        summary = _run_into(source, tmp, seed, maneuver, study, _Stages(quiet))
+        summary = _run_into(source, tmp, seed, maneuver, study, stages, config)
         if out.exists():
             shutil.rmtree(out)
         os.replace(tmp, out)
     finally:
+        stages.close()
         shutil.rmtree(tmp, ignore_errors=True)
     summary["out"] = str(out)
     return summary
 
 
-def _run_into(source, tmp, seed, maneuver, study, stage):
+def _run_into(source, tmp, seed, maneuver, study, stage, config):
     from dragline.capture import calibrate, read_session, save_cameras, write_results
     from dragline.compare import compare_tables, discretization_study, write_report
     from dragline.reconstruct import reconstruct_session, reconstruct_vicon_csv
     from dragline.simulate import dig_maneuver, load_rig, read_maneuver_csv, simulate, write_trajectory_csv
 
-    rig = load_rig()
+    sim, rec = config["simulate"], config["reconstruct"]
+    rig = load_rig(sim["rig"])
+    if maneuver is None and sim["maneuver"] is not None:
+        maneuver = dig_maneuver() if sim["maneuver"] == "dig" else read_maneuver_csv(sim["maneuver"])
+    options = {"method": rec["method"], "smoothing": rec["smoothing"], "max_gap": int(rec["max_gap"])}
     files = {}
     points = names = None
     if source is None:
@@ -102,7 +164,7 @@ def _run_into(source, tmp, seed, maneuver, study, stage):
         files["truth"] = str(tmp / "truth")
     elif str(source).lower().endswith(".csv"):
         maneuver = maneuver or dig_maneuver()
-        measured, _ = stage("reconstruct the VICON export", reconstruct_vicon_csv, source, rig)
+        measured, _ = stage("reconstruct the VICON export", reconstruct_vicon_csv, source, rig, **options)
         session = None
     else:
         from dragline.capture._session_io import session_file
@@ -121,12 +183,13 @@ def _run_into(source, tmp, seed, maneuver, study, stage):
         )
         save_cameras(tmp / "cameras.json", cameras, quality)
         files["cameras"] = str(tmp / "cameras.json")
-        measured, names, points, _ = stage("reconstruct", reconstruct_session, session, cameras, rig)
+        measured, names, points, _ = stage("reconstruct", reconstruct_session, session, cameras, rig, **options)
     write_trajectory_csv(tmp / "measured.csv", measured)
     files["measured"] = str(tmp / "measured.csv")
 
     duration = float(measured["time"].iloc[-1] - measured["time"].iloc[0])
-    result = stage("simulate the nominal model", simulate, rig, maneuver, duration=duration, rate_hz=200.0)
+    discretization = sim["discretization"]
+    result = stage("simulate the nominal model", simulate, rig, maneuver, discretization, duration=duration, rate_hz=200.0)
     simulated = result.table
     write_trajectory_csv(tmp / "simulated.csv", simulated)
     files["simulated"] = str(tmp / "simulated.csv")
@@ -136,7 +199,7 @@ def _run_into(source, tmp, seed, maneuver, study, stage):
     _write_json(tmp / "metrics.json", metrics)
     files["metrics"] = str(tmp / "metrics.json")
     stage("write the report", write_report, tmp / "report.pdf", measured, simulated, metrics, study=studied,
-          sources={"measured": "measured.csv", "simulated": "nominal model, baseline discretization"})
+          sources={"measured": "measured.csv", "simulated": f"nominal model, {discretization} discretization"})
     files["report"] = str(tmp / "report.pdf")
 
     ropes = {"simulated/" + r: result.rope_nodes(r) for r in ("hoist_rope", "drag_rope", "dump_rope")}

@@ -79,3 +79,29 @@ def test_an_interrupted_run_leaves_no_output(tmp_path, monkeypatch):
     out = tmp_path / "out"
     assert main(["run", "--out", str(out), "--no-study", "--quiet"]) == 130
     assert not out.exists() and not list(tmp_path.glob(".*partial*"))
+
+
+def test_committed_sample_session_replays(tmp_path):
+    from pathlib import Path
+
+    sample = Path(__file__).resolve().parents[1] / "samples" / "dig_sample"
+    out = tmp_path / "out"
+    assert main(["run", str(sample), "--out", str(out), "--no-study", "--quiet"]) == 0
+    measured = pd.read_csv(out / "measured.csv")
+    truth = pd.read_csv(sample.parent / "dig_sample_truth" / "trajectories.csv")
+    n = min(len(measured), len(truth))
+    err = (measured["bucket.z"].iloc[:n] - truth["bucket.z"].iloc[:n]).abs()
+    assert err.max() < 0.005  # m: the reconstruction agrees with the sample's truth
+
+
+def test_config_file_sets_stage_options_and_rejects_unknown_keys(tmp_path, capsys):
+    good = tmp_path / "good.toml"
+    good.write_text('[run]\nstudy = false\n[reconstruct]\nmethod = "svd"\n')
+    config = _run.read_config(good)
+    assert config["reconstruct"]["method"] == "svd" and config["run"]["study"] is False
+    assert config["simulate"]["discretization"] == "baseline"  # defaults kept
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[reconstruct]\nsmoother = "x"\n')
+    assert main(["run", "--config", str(bad), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown key 'smoother'" in err[0]
