@@ -72,10 +72,12 @@ __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_di
 SCHEMA = "dragline.diagnosis/1"
 # The reel table must explain the recorded rope lengths: after aligning the
 # clocks, the measured length may differ from the nominal simulation's
-# (stretch included) by this much RMS about its mean (m) ...
-ROPE_TOLERANCE = 0.02
-# ... and by this much on average (m; cubic-fit and marker-offset bias).
-ROPE_BIAS_TOLERANCE = 0.025
+# (stretch included) by this much RMS about its mean, and on average (m).
+# A rope through a pulley ring gets more: friction or inertia in the ring
+# holds rope on one side (pulley friction at full lock moves 40 mm RMS and
+# 60 mm at the end of the dig maneuver), which is physics to diagnose, not a
+# wrong table; a rope straight from its reel is only stretched.
+ROPE_TOLERANCE = {"free": (0.02, 0.025), "ring": (0.08, 0.05)}
 # The rope lengths must move at all (m) for the clocks to be aligned.
 MIN_REEL_TRAVEL = 0.05
 # A free decay shorter than this after the reels stop is too short (s): over
@@ -280,7 +282,7 @@ def _check_channels(measured):
     return channels
 
 
-def check_maneuver(measured, estimate):
+def check_maneuver(measured, estimate, rig):
     """Raise ValueError unless the reel table explains the recorded rope lengths.
 
     Parameters
@@ -288,6 +290,9 @@ def check_maneuver(measured, estimate):
     measured : pandas.DataFrame
     estimate : dict
         ``estimate_time_offset(measured, nominal_table)``.
+    rig : Rig
+        Says which ropes pass a pulley ring (looser tolerance, see
+        ``ROPE_TOLERANCE``).
     """
     ropes = [c for c in ROPE_CHANNELS if c in measured.columns and np.isfinite(np.asarray(measured[c], float)).any()]
     if not ropes:
@@ -301,18 +306,46 @@ def check_maneuver(measured, estimate):
     if estimate["at_search_edge"]:
         raise ValueError("the maneuver table does not match the recorded rope lengths: the best clock offset "
                          f"lies at the search limit ({estimate['offset']:+.2f} s)")
-    bad = [(r["residual_rms"], rope) for rope, r in estimate["ropes"].items() if r["residual_rms"] > ROPE_TOLERANCE]
-    if bad:
-        text = ", ".join(f"{rope} by {1000 * rms:.0f} mm RMS" for rms, rope in sorted(bad, reverse=True))
-        raise ValueError(
-            f"the maneuver table does not match the recorded rope lengths: after aligning the clocks they differ "
-            f"from what the table gives ({text}; tolerance {1000 * ROPE_TOLERANCE:.0f} mm allows for rope stretch)")
+    bad = []
     for rope, r in estimate["ropes"].items():
-        if abs(r["bias"]) > ROPE_BIAS_TOLERANCE:
-            raise ValueError(
-                f"the maneuver table does not match the recorded rope lengths: {rope} is on average "
-                f"{1000 * abs(r['bias']):.0f} mm {'longer' if r['bias'] > 0 else 'shorter'} than the table "
-                f"gives (tolerance {1000 * ROPE_BIAS_TOLERANCE:.0f} mm)")
+        rms_tol, bias_tol = ROPE_TOLERANCE[_rope_kind(rig, rope)]
+        if r["residual_rms"] > rms_tol:
+            bad.append((r["residual_rms"] / rms_tol,
+                        f"{rope} by {1000 * r['residual_rms']:.0f} mm RMS (tolerance {1000 * rms_tol:.0f} mm)"))
+        elif abs(r["bias"]) > bias_tol:
+            bad.append((abs(r["bias"]) / bias_tol,
+                        f"{rope} by {1000 * abs(r['bias']):.0f} mm on average, "
+                        f"{'longer' if r['bias'] > 0 else 'shorter'} (tolerance {1000 * bias_tol:.0f} mm)"))
+    if bad:
+        raise ValueError("the maneuver table does not match the recorded rope lengths: after aligning the clocks "
+                         "they differ from what the table gives: " + "; ".join(t for _, t in sorted(bad, reverse=True)))
+
+
+def _rope_kind(rig, channel):
+    rope = rig.ropes.get(channel.split(".")[0])
+    return "ring" if rope is not None and rope.ring is not None else "free"
+
+
+def align_with_maneuver(measured, nominal_table, rig):
+    """Clock offset of the recording, from the rope lengths that run straight from their reels.
+
+    A rope through a pulley ring is used only when no other one is
+    measured: ring friction or inertia changes its length in ways that would
+    pull the offset.
+    """
+    ropes = [c for c in ROPE_CHANNELS if c in measured.columns and np.isfinite(np.asarray(measured[c], float)).any()]
+    free = [c for c in ropes if _rope_kind(rig, c) == "free"]
+    use = free or ropes
+    if use == ropes:
+        return estimate_time_offset(measured, nominal_table)
+    drop = [c for c in ropes if c not in use]
+    estimate = estimate_time_offset(measured.drop(columns=drop), nominal_table.drop(columns=drop))
+    if estimate["estimated"]:
+        # Every rope's agreement at that offset (a zero-width search at the shifted clock).
+        shifted = measured.assign(time=np.asarray(measured["time"], float) - estimate["offset"])
+        estimate["ropes"] = estimate_time_offset(shifted, nominal_table, max_offset=0.0)["ropes"]
+    estimate["channels_used"] = use
+    return estimate
 
 
 # ---------------------------------------------------------------- diagnosis
@@ -429,8 +462,8 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     note("simulating the nominal model")
     nominal_run = simulate(rig, maneuver, discretization, [], duration=record + MAX_OFFSET, rate_hz=rate)
     nominal_table = nominal_run.table
-    estimate = estimate_time_offset(measured, nominal_table)
-    check_maneuver(measured, estimate)
+    estimate = align_with_maneuver(measured, nominal_table, rig)
+    check_maneuver(measured, estimate, rig)
     offset = float(estimate["offset"])
     t_al = t_meas - offset
     keep = (t_al >= t0 - 1e-9) & (t_al <= float(nominal_run.time[-1]) + 1e-9)
@@ -462,7 +495,9 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     structured_before = [e for e in located if e["significant"]]
     b0, shift0 = nominal_eval["nuisance"]
     offsets = {c: float(b) for c, b in zip(channels, b0)}
-    too_far = [c for c in channels if abs(offsets[c]) > OFFSET_LIMIT[channel_kind(c)]]
+    # Rope-length offsets were judged against the reel table (check_maneuver).
+    too_far = [c for c in channels if channel_kind(c) in OFFSET_LIMIT
+               and abs(offsets[c]) > OFFSET_LIMIT[channel_kind(c)]]
     offsets_note = None
     if too_far:
         offsets_note = ("constant offsets beyond what calibration explains on " + ", ".join(

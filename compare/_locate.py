@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from ..simulate import ROPE_CHANNELS
 from ._compare import FREE_DECAY_CHANNELS, channel_kind
 
 __all__ = [
@@ -43,16 +44,17 @@ __all__ = [
 ]
 
 # The channels that carry the dynamics: positions and pitch angles of the
-# four bodies (the paper's figures); velocities and rates are derived from
-# them by differencing and smoothing and add nothing independent.
-DYNAMIC_CHANNELS = FREE_DECAY_CHANNELS
+# four bodies (the paper's figures) and the rope lengths (rope held in a
+# pulley by friction shows there first); velocities and rates are derived
+# from them by differencing and smoothing and add nothing independent.
+DYNAMIC_CHANNELS = tuple(FREE_DECAY_CHANNELS) + tuple(ROPE_CHANNELS)
 
 LOWPASS_S = 0.1
 STRUCTURE_SIGMAS = 4.0
-STRUCTURE_FLOOR = {"position": 1.0e-3, "angle": math.radians(0.25)}
+STRUCTURE_FLOOR = {"position": 1.0e-3, "angle": math.radians(0.25), "rope_length": 2.0e-3}
 # Lowest noise level believed (a table with less noise than this was
 # smoothed or simulated; sigma must not go to zero).
-NOISE_FLOOR = {"position": 5.0e-5, "angle": 2.0e-4}
+NOISE_FLOOR = {"position": 5.0e-5, "angle": 2.0e-4, "rope_length": 5.0e-5}
 # Windows: maneuver phases shorter than this are merged with the next one;
 # a maneuver with more phases than MAX_PHASES is cut into 1 s windows.
 MIN_WINDOW_S = 0.5
@@ -68,7 +70,7 @@ def noise_level(values, kind="position"):
         Uniformly sampled signal; NaN allowed (differences across them are
         skipped).
     kind : str
-        ``position`` or ``angle``: selects the floor ``NOISE_FLOOR``.
+        ``position``, ``angle`` or ``rope_length``: selects the floor ``NOISE_FLOOR``.
 
     Returns
     -------

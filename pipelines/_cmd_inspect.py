@@ -204,7 +204,7 @@ def _table_text(s):
              f"  entities: {', '.join(s['entities'])}" if s["entities"] else
              f"  columns: {', '.join(s['column_names'])}"]
     if s["nan_values"]:
-        lines.append(f"  columns with missing values: " + ", ".join(f"{c} ({n})" for c, n in s["nan_values"].items()))
+        lines.append("  columns with missing values: " + ", ".join(f"{c} ({n})" for c, n in s["nan_values"].items()))
     return lines
 
 

@@ -13,7 +13,6 @@ import subprocess
 import sys
 import tempfile
 
-import numpy as np
 
 LEVELS = ("low", "baseline", "medium", "high")
 

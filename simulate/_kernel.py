@@ -232,7 +232,7 @@ def rhs(t, y, dy, m, work):
     o_F = o_vel + 3 * P
     o_ring = o_F + E
 
-    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel, el_u, el_dv, el_len, el_T, el_arm, trig, inv_mass_seg = work
+    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel, trig, inv_mass_seg = work[:14]
 
     _fixed_points(t, reel_t, point_pos, fpos, fvel)
     for b in range(nb):
@@ -395,9 +395,10 @@ def dissipate(t, y, dt, m, work):
     o_vel = o_part + 3 * P
     o_F = o_vel + 3 * P
     o_ring = o_F + E
-    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel, el_u, el_dv, el_len, el_T, el_arm = work[:17]
+    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel = work[:12]
+    el_u, el_len, el_T, el_arm = work[14:18]
     el_seg, el_side, el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m[6], m[7], m[8], m[9], m[10], m[11], m[12], m[13]
-    seg_ks, seg_ring, seg_nel, seg_nelA, seg_npart, seg_rho = m[14], m[20], m[21], m[22], m[23], m[24]
+    seg_ks, seg_ring, seg_nel, seg_nelA, seg_rho = m[14], m[20], m[21], m[22], m[24]
     _fixed_points(t, m[27], m[29], fpos, fvel)
     for b in range(nb):
         _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
@@ -557,7 +558,7 @@ def _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o
 
 
 def make_work(m):
-    """Scratch arrays for ``rhs`` and ``project`` (allocated once per run)."""
+    """Scratch arrays for ``rhs``, ``project`` and ``dissipate`` (allocated once per run)."""
     nb = m[0]
     P = m[5].shape[0]
     S = m[14].shape[0]
@@ -576,13 +577,12 @@ def make_work(m):
         np.zeros(max(R, 1)),
         np.zeros((max(m[29].shape[1], 1), 3)),
         np.zeros((max(m[29].shape[1], 1), 3)),
-        np.zeros((m[6].shape[0], 3)),
-        np.zeros((m[6].shape[0], 3)),
-        np.zeros(m[6].shape[0]),
-        np.zeros(m[6].shape[0]),
-        np.zeros((m[6].shape[0], 6)),
-        np.zeros((max(nb, 1), 4)),
-        np.zeros(S),
+        np.zeros((max(nb, 1), 4)),  # per body: sin, cos of roll and yaw
+        np.zeros(S),  # per segment: 1 / particle mass
+        np.zeros((m[6].shape[0], 3)),  # dissipate: element unit vectors
+        np.zeros(m[6].shape[0]),  # lengths
+        np.zeros(m[6].shape[0]),  # tensions
+        np.zeros((m[6].shape[0], 6)),  # lever arms of both ends
     )
 
 

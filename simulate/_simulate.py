@@ -8,7 +8,6 @@ import numpy as np
 import pandas as pd
 
 from . import _kernel
-from ._kinematics import body_to_inertial
 from ._maneuver import dig_maneuver
 from ._model import assemble
 from ._rig import load_rig

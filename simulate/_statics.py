@@ -54,7 +54,6 @@ def _frozen(model, t):
 
 def initial_state(model, t=0.0, pitch_guess=0.0):
     """A rough pose: bodies hanging in line, ropes straight or sagging."""
-    a = model.arrays
     h, d = model.maneuver.lengths_at(t)
     pos = rough_body_positions(model.rig, float(h), float(d))
     y = np.zeros(model.n_state)

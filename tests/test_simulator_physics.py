@@ -11,7 +11,6 @@ from scipy.optimize import brentq
 from dragline.simulate import (
     Maneuver,
     assemble,
-    load_rig,
     rig_from_dict,
     simulate,
     solve_statics,
