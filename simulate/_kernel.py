@@ -377,12 +377,15 @@ def dissipate(t, y, dt, m, work):
     ropes: explicitly they would need steps far below the axial-wave limit.
     Here they act as velocity impulses solved implicitly, one Gauss-Seidel
     sweep over the joints: with w the joint's inverse inertia to a bending
-    impulse (sum of 1/m over the joint's element ends, over L^2), damping
+    impulse (1/m over the joint's element ends, over L^2, plus the shared
+    particle's cross term 2 (u1 . u2) / (m L1 L2)), damping
     takes H = -c dt omega / (1 + c dt w), and Coulomb friction either stops
     the relative rotation (stick) or takes |H| = mu r T dt (slip); a ring's
     slide likewise. Unconditionally stable and dissipative; first order in
     these terms (Lie splitting), exact in the nominal model, where it does
-    nothing.
+    nothing. Known limit of the splitting: a stuck joint or ring creeps, as
+    the RK4 step moves it by about dt^2 a / 2 before friction stops it
+    (time constant ~ 2 / (dt omega^2); tests/test_mechanism_signatures.py).
     """
     has_joints = m[34] != 0
     has_rings = m[43] != 0
@@ -520,6 +523,9 @@ def _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o
             w1z = (u1x * (vyb - vya) - u1y * (vxb - vxa)) / L1
             w += (_inverse_mass(el_ka[e1], el_ia[e1], el_arm[e1, 0], el_arm[e1, 1], el_arm[e1, 2], part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg)
                   + _inverse_mass(el_kb[e1], el_ib[e1], el_arm[e1, 3], el_arm[e1, 4], el_arm[e1, 5], part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg)) / (L1 * L1)
+            # the shared particle takes both couples: cross term 2 (u1 . u2) / (m_p L1 L2)
+            inv_p = _inverse_mass(el_ka[e2], el_ia[e2], 0.0, 0.0, 0.0, part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg)
+            w += 2.0 * (u1x * u2x + u1y * u2y + u1z * u2z) * inv_p / (L1 * L2)
             tension = 0.5 * (el_T[e1] + el_T[e2])
         else:
             b = -e1 - 1

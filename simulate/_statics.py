@@ -333,9 +333,26 @@ def stable_time_step(model, safety=0.75, state=None):
         np.max(2.0 * k_part / m_part, initial=0.0),
         np.max(2.0 * k_body / a["body_mass"], initial=0.0),
         np.max(2.0 * k_rot / I_axes, initial=0.0),
+        _ring_slide_eigenvalue(model, rest, Lmin),
     )
+    if lam == 0.0:  # nothing stiff: a step that still resolves 1 kHz
+        return 1e-3
     # the dissipative mechanisms are stepped implicitly (_kernel.dissipate): no limit from them
     return safety * 2.0 * np.sqrt(2.0) / np.sqrt(lam)
+
+
+def _ring_slide_eigenvalue(model, rest, Lmin):
+    """Gershgorin bound of a ring's slide mode: stiffness sum of K / L_side over m_s."""
+    a = model.arrays
+    lam = 0.0
+    for r, s in enumerate(a["ring_seg"]):
+        K = a["seg_ks"][s] + a["seg_kv"][s]
+        sides = a["el_side"][model.seg_elements[model.seg_names[s]]]
+        el = np.arange(model.seg_elements[model.seg_names[s]].start, model.seg_elements[model.seg_names[s]].stop)
+        k = sum(K / (rest[el[sides == side]].sum()) for side in (1, 2))
+        m_s = a["seg_rho"][s] * Lmin[s] / 3.0 + a["ring_added_mass"][r]
+        lam = max(lam, 2.0 * k / m_s)
+    return lam
 
 
 def _shortest_rest_lengths(model, Lmin, state):

@@ -112,9 +112,13 @@ def test_surrogate_null_matches_independent_noise():
         aA, aB = max(gA / (g[A] ** 2).sum(), 0), max(gB / (g[B] ** 2).sum(), 0)
         draws.append(2 * aA * gB - aA**2 * (g[B] ** 2).sum() + 2 * aB * gA - aB**2 * (g[A] ** 2).sum())
     truth = float(np.quantile(draws, 0.99))
-    _, q = null_threshold(problem, rng.normal(0, 1, (n, c)), [signature], seed=3, n_surrogates=2000)
+    # Each residual record gives its own spectrum estimate, hence its own
+    # threshold: unbiased on average, within a factor 2 each.
+    qs = [null_threshold(problem, rng.normal(0, 1, (n, c)), [signature], seed=k, n_surrogates=1000)[1]
+          for k in range(6)]
     assert truth > 0
-    assert abs(q / truth - 1) < 0.3
+    assert abs(np.mean(qs) / truth - 1) < 0.25
+    assert all(0.5 < q / truth < 2.0 for q in qs)
 
 
 # ---------------------------------------------------------------- verdicts
@@ -190,9 +194,12 @@ def test_cli_writes_json_and_report(tmp_path, nominal_measured):
 
 
 def _error_line(capsys):
+    """The one error line (progress notes may come before it; no traceback)."""
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("dragline: error:")
-    return err[0]
+    errors = [line for line in err if line.startswith("dragline: error:")]
+    assert len(errors) == 1 and err[-1] == errors[0]
+    assert not any("Traceback" in line for line in err)
+    return errors[0]
 
 
 def test_cli_bad_inputs_exit_2_with_one_line(tmp_path, nominal_measured, nominal_run, capsys):
