@@ -37,3 +37,8 @@ __all__ += [
     "discretization_study",
     "write_report",
 ]
+from ._diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_diagnosis_json, write_diagnosis_report
+from ._discovery_bench import bench_discovery
+
+__all__ += ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
+            "write_diagnosis_report", "bench_discovery"]

@@ -47,6 +47,7 @@ from ..simulate import (
 from ._align import MAX_OFFSET, check_table, estimate_time_offset, read_trajectory_table, reels_stop_time
 from ._compare import channel_kind
 from ._decay import free_decay
+from ._metrics import channel_metrics
 from ._hypotheses import (
     affordable_range,
     candidate_list,
@@ -64,6 +65,7 @@ from ._hypotheses import (
     NULL_QUANTILE,
     NULL_SURROGATES,
     MIN_IMPROVEMENT,
+    REFINE_XATOL,
 )
 from ._locate import DYNAMIC_CHANNELS, LOWPASS_S, locate_mismatch, low_pass, noise_level, structure_threshold, time_windows
 
@@ -379,6 +381,27 @@ def _free_decay_section(time, channels, measured, nominal, fitted, fitted_name, 
     return out
 
 
+METRIC_KEYS = ("rms_error", "peak_error", "sg_combined", "iso_rating")
+
+
+def _before_after_metrics(time, channels, measured, nominal, fitted, model, t_stop):
+    """The comparison metrics (``channel_metrics``) over the free decay, nominal and fitted model."""
+    sel = time >= t_stop
+    out = {"model": model, "window": [float(t_stop), float(time[-1])], "channels": {}}
+    for j, ch in enumerate(channels):
+        entry = {}
+        for side, sim in (("before", nominal), ("after", fitted)):
+            if sim is None:
+                continue
+            try:
+                m = channel_metrics(time[sel], measured[sel, j], sim[sel, j])
+            except ValueError:
+                continue
+            entry[side] = {k: m[k] for k in METRIC_KEYS}
+        out["channels"][ch] = entry
+    return out
+
+
 def _structure_energy(residual, channels, sigma, width):
     """Sum of squared low-passed residuals, each channel over its structure threshold."""
     lp = low_pass(residual, width)
@@ -435,7 +458,9 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         ``signature_match``, ``explained_fraction``, ``rms_channels`` (SI,
         all data, before/after); ``skipped`` (candidates the simulator
         cannot run); ``free_decay`` (measured, nominal and fitted frequency,
-        damping, envelope per channel); ``null_test``; ``channels`` (noise,
+        damping, envelope per channel); ``metrics`` (RMS and peak error,
+        Sprague-Geers C, ISO/TS 18571 rating over the free decay, nominal
+        ``before`` and fitted ``after``); ``null_test``; ``channels`` (noise,
         offset per channel); ``alignment``; ``settings``; ``timing``.
 
     Raises
@@ -494,15 +519,6 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     located = locate_mismatch(time, r0, channels, sigma, windows)
     structured_before = [e for e in located if e["significant"]]
     b0, shift0 = nominal_eval["nuisance"]
-    offsets = {c: float(b) for c, b in zip(channels, b0)}
-    # Rope-length offsets were judged against the reel table (check_maneuver).
-    too_far = [c for c in channels if channel_kind(c) in OFFSET_LIMIT
-               and abs(offsets[c]) > OFFSET_LIMIT[channel_kind(c)]]
-    offsets_note = None
-    if too_far:
-        offsets_note = ("constant offsets beyond what calibration explains on " + ", ".join(
-            f"{c} ({offsets[c]:+.3g})" for c in too_far) + ": the rig geometry or the calibration differs from "
-            "the model, so no dynamic mechanism can be trusted")
 
     # 2-3. Rank and fit.
     cands = candidate_list(candidates)
@@ -550,7 +566,11 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         spread = abs(fold_x[0] - fold_x[1]) / 2.0 if len(fold_x) == 2 else None
         # The fold estimates are discrete choices among evaluated points, so
         # their spread alone may be 0: only a measured curvature states one.
-        stated = None if sx is None or s["at_bound"] else max(sx, spread or 0.0)
+        # Never below the search's own resolution in ln p (REFINE_XATOL): the
+        # optimum is not located more finely than that, and the
+        # reconstruction's small systematic errors bias strong fits by about
+        # as much.
+        stated = None if sx is None or s["at_bound"] else max(sx, spread or 0.0, REFINE_XATOL)
         uncertainty = {
             "parameter": main,
             "std": _json_number(value * stated) if stated is not None and value > 0 else None,
@@ -559,8 +579,9 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
                             if stated is not None and value > 0 else None),
             "profile_relative": _json_number(sx),
             "fold_values": s["fold_values"],
-            "method": "larger of the chi2(ln p) profile curvature (scaled by the residual's dispersion and "
-                      "autocorrelation) and half the spread of the two folds' estimates; none at a range bound",
+            "method": "largest of the chi2(ln p) profile curvature (scaled by the residual's dispersion and "
+                      "autocorrelation), half the spread of the two folds' estimates and the search tolerance "
+                      f"({REFINE_XATOL:g} in ln p); none at a range bound",
         }
         rms_ch = {}
         for j, ch in enumerate(channels):
@@ -601,10 +622,24 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         after_name = sig[0]["name"]
         located_after = locate_mismatch(time, residuals[after_name], channels, sigma, windows)
         structured_after = [e for e in located_after if e["significant"]]
+    # Constant offsets left by the best model (a mechanism can shift the
+    # mean pose, e.g. rope held in a pulley): beyond calibration accuracy,
+    # the geometry differs. Rope-length offsets were judged against the reel
+    # table (check_maneuver).
+    b_ref = scored[after_name]["evaluation"]["nuisance"][0] if after_name else b0
+    offsets = {c: float(b) for c, b in zip(channels, b_ref)}
+    too_far = [c for c in channels if channel_kind(c) in OFFSET_LIMIT
+               and abs(offsets[c]) > OFFSET_LIMIT[channel_kind(c)]]
+    offsets_note = None
+    if too_far:
+        offsets_note = ("constant offsets beyond what calibration explains on " + ", ".join(
+            f"{c} ({offsets[c]:+.3g})" for c in too_far) + ": the rig geometry or the calibration differs from "
+            "the model, so no dynamic mechanism can be trusted")
     verdict, reason = decide(hypotheses, threshold, structured_before, structured_after,
                              offsets_ok=not too_far, offsets_note=offsets_note)
     shown = verdict if verdict in fitted_series else after_name
     decay = _free_decay_section(time, channels, M, M - r0, fitted_series.get(shown), shown, t_stop)
+    metrics = _before_after_metrics(time, channels, M, M - r0, fitted_series.get(shown), shown, t_stop)
 
     doc = {
         "schema": SCHEMA,
@@ -615,10 +650,11 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         "hypotheses": hypotheses,
         "skipped": skipped,
         "free_decay": decay,
+        "metrics": metrics,
         "null_test": {"threshold": threshold, "surrogate_quantile": q, "quantile": NULL_QUANTILE,
                       "n_surrogates": NULL_SURROGATES, "min_improvement": MIN_IMPROVEMENT,
                       "dispersion_kappa": kappa},
-        "channels": {c: {"noise": float(sigma[j]), "offset": offsets[c],
+        "channels": {c: {"noise": float(sigma[j]), "offset": offsets[c], "offset_nominal": float(b0[j]),
                          "structure_threshold": structure_threshold(c, sigma[j], width)}
                      for j, c in enumerate(channels)},
         "windows": [{"window": w, "t_start": a, "t_end": b} for w, a, b in windows],

@@ -22,10 +22,10 @@ __all__ = ["write_report_pdf"]
 
 PAGE_SIZE = (8.27, 11.69)  # A4 portrait, inches
 DEG = 180.0 / math.pi
-PLOT = {"position": (1.0, "m"), "angle": (DEG, "deg")}
-RESID = {"position": (1000.0, "mm"), "angle": (DEG, "deg")}
+PLOT = {"position": (1.0, "m"), "angle": (DEG, "deg"), "rope_length": (1.0, "m")}
+RESID = {"position": (1000.0, "mm"), "angle": (DEG, "deg"), "rope_length": (1000.0, "mm")}
 OVERLAY_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch", "drag_cluster.x", "spreader_bar.pitch",
-                    "hoist_cluster.z")
+                    "hoist_cluster.z", "hoist_rope.length", "drag_rope.length", "hoist_cluster.pitch")
 TEXT_SIZE = 7.0
 LINES_PER_PAGE = 92
 
@@ -71,9 +71,9 @@ def _summary_lines(doc):
         lines.append(f"  {rope}: {1000 * r['residual_rms']:.1f} mm RMS about a {1000 * r['bias']:+.1f} mm bias "
                      "(recording vs nominal simulation)")
     nt = doc["null_test"]
-    lines += ["", f"Null test: held-out improvement threshold {nt['threshold']:.1f} (chi2 units): "
-                  f"{100 * nt['quantile']:.0f}th percentile of {nt['n_surrogates']} noise surrogates "
-                  f"({_f(nt['surrogate_quantile'])}), at least {nt['min_improvement']:g}", ""]
+    lines += [""] + _wrap(f"Null test: held-out improvement threshold {nt['threshold']:.1f} (chi2 units): "
+                          f"{100 * nt['quantile']:.0f}th percentile of {nt['n_surrogates']} noise surrogates "
+                          f"({_f(nt['surrogate_quantile'])}), at least {nt['min_improvement']:g}") + [""]
     lines.append("Hypotheses, best first (held-out RMS in units of the measurement noise; 1 = noise):")
     lines.append(f"{'mechanism':<22}{'parameter':>22}{'+-68%':>20}{'rms before':>11}{'after':>8}"
                  f"{'improve':>11}{'score':>9}  sig  bound")
@@ -107,6 +107,22 @@ def _summary_lines(doc):
             cells.append("-" if r is None or r.get("status") != "ok" else
                          f"{_f(r['frequency_hz'])} / {_f(r['damping_ratio'])} / {r['shape'][:5]}")
         lines.append(f"{ch:<22}{cells[0]:>26}{cells[1]:>26}{cells[2]:>34}")
+    met = doc.get("metrics", {})
+    if met.get("channels"):
+        lines += ["", f"Free-decay metrics, nominal -> {met['model'] or 'no fitted model'} "
+                      "(RMS, peak error; Sprague-Geers C; ISO/TS 18571 rating):"]
+        for ch, e in met["channels"].items():
+            scale, unit = RESID[channel_kind(ch)] if channel_kind(ch) in RESID else (1000.0, "mm")
+            b, a = e.get("before", {}), e.get("after", {})
+
+            def cell(x, key, k=scale):
+                v = x.get(key)
+                return "-" if v is None else f"{k * v:.3g}"
+
+            lines.append(f"  {ch:<20} rms {cell(b, 'rms_error'):>7} -> {cell(a, 'rms_error'):<7} {unit:<3} "
+                         f"peak {cell(b, 'peak_error'):>7} -> {cell(a, 'peak_error'):<7} "
+                         f"SG-C {cell(b, 'sg_combined', 1):>6} -> {cell(a, 'sg_combined', 1):<6} "
+                         f"ISO {cell(b, 'iso_rating', 1):>5} -> {cell(a, 'iso_rating', 1)}")
     lines += ["", f"{doc['timing']['simulations']} simulations (discretization "
                   f"{doc['settings']['discretization']})"]
     return lines

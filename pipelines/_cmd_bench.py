@@ -41,7 +41,14 @@ def _triangulation(args):
     return bench_triangulation(seed=args.seed, repeats=args.repeats), []
 
 
-BENCHES = {"simulate": _simulate, "capture": _capture, "reconstruct": _reconstruct, "triangulation": _triangulation}
+def _discovery(args):
+    from dragline.compare._discovery_bench import bench_command
+
+    return bench_command(args)
+
+
+BENCHES = {"simulate": _simulate, "capture": _capture, "reconstruct": _reconstruct, "triangulation": _triangulation,
+           "discovery": _discovery}
 
 
 def run(args):

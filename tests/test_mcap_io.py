@@ -14,14 +14,8 @@ import pandas as pd
 import pytest
 from mcap.reader import make_reader
 
-from dragline.capture._mcap_io import (
-    CaptureSession,
-    quaternion_from_matrix,
-    read_session,
-    summarize_mcap,
-    write_results,
-    write_session,
-)
+from dragline.capture._foxglove import quaternion_from_matrix, write_results
+from dragline.capture._mcap_io import CaptureSession, read_session, summarize_mcap, write_session
 from dragline.simulate import body_to_inertial
 
 TAKE_TOPICS = {"lframe": "/calibration/lframe", "wand": "/calibration/wand",
