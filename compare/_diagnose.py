@@ -44,12 +44,25 @@ from ..simulate import (
     read_maneuver_csv,
     simulate,
 )
-from ._align import MAX_OFFSET, check_table, estimate_time_offset, read_trajectory_table, reels_stop_time
+from ._align import (
+    MAX_OFFSET,
+    check_table,
+    estimate_time_offset,
+    read_trajectory_table,
+    reels_stop_time,
+)
 from ._compare import channel_kind
 from ._decay import free_decay
-from ._metrics import channel_metrics
 from ._hypotheses import (
+    BLOCK_S,
+    DECAY_WEIGHT,
+    MIN_IMPROVEMENT,
+    NULL_QUANTILE,
+    NULL_SURROGATES,
+    REFINE_XATOL,
+    Problem,
     affordable_range,
+    autocorrelation_time,
     candidate_list,
     decide,
     fit_candidates,
@@ -58,16 +71,17 @@ from ._hypotheses import (
     score_candidate,
     signature_match,
     unavailable_reason,
-    autocorrelation_time,
-    Problem,
-    DECAY_WEIGHT,
-    BLOCK_S,
-    NULL_QUANTILE,
-    NULL_SURROGATES,
-    MIN_IMPROVEMENT,
-    REFINE_XATOL,
 )
-from ._locate import DYNAMIC_CHANNELS, LOWPASS_S, locate_mismatch, low_pass, noise_level, structure_threshold, time_windows
+from ._locate import (
+    DYNAMIC_CHANNELS,
+    LOWPASS_S,
+    locate_mismatch,
+    low_pass,
+    noise_level,
+    structure_threshold,
+    time_windows,
+)
+from ._metrics import channel_metrics
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json", "write_diagnosis_report"]
 
@@ -188,7 +202,7 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
     ValueError
         Unreadable input, a different rig's markers, no maneuver.
     """
-    from ..capture._mcap_io import read_session  # noqa: PLC0415 - heavy, only for sessions
+    from ..capture._mcap_io import read_session
 
     note = progress or (lambda msg: None)
     path = os.fspath(path)
@@ -228,14 +242,14 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
             else:
                 maneuver, source["maneuver"] = _session_maneuver(session, file), f"{file} (session info)"
         cameras, source["calibration"] = _session_cameras(session, file, folder, calibration, note)
-        from ..reconstruct._pipeline import reconstruct_session  # noqa: PLC0415
+        from ..reconstruct._pipeline import reconstruct_session
 
         try:
             table, _, _, _ = reconstruct_session(session, cameras, rig=rig)
         except ValueError as exc:
             raise ValueError(f"{file}: {exc}") from None
     elif kind == "vicon":
-        from ..reconstruct._pipeline import reconstruct_vicon_csv  # noqa: PLC0415
+        from ..reconstruct._pipeline import reconstruct_vicon_csv
 
         table, _ = reconstruct_vicon_csv(file, rig=rig)
     else:
@@ -251,8 +265,8 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
 
 
 def _session_cameras(session, file, folder, calibration, note):
-    from ..capture import calibrate  # noqa: PLC0415
-    from ..capture._cameras import load_cameras  # noqa: PLC0415
+    from ..capture import calibrate
+    from ..capture._cameras import load_cameras
 
     if calibration is None and folder and os.path.isfile(os.path.join(folder, "cameras.json")):
         calibration = os.path.join(folder, "cameras.json")
@@ -416,6 +430,33 @@ def _json_number(x):
     return x if math.isfinite(x) else None
 
 
+def _uncertainty(scored, main, kappa):
+    """The stated uncertainty of a fitted main parameter (see ``_hypotheses``)."""
+    value = scored["value"]
+    sx = profile_uncertainty(scored["profile"], value, kappa)
+    fold_x = [math.log(v) for v in scored["fold_values"] if v > 0]
+    spread = abs(fold_x[0] - fold_x[1]) / 2.0 if len(fold_x) == 2 else None
+    # The fold estimates are discrete choices among evaluated points, so
+    # their spread alone may be 0: only a measured curvature states one.
+    # Never below the search's own resolution in ln p (REFINE_XATOL): the
+    # optimum is not located more finely than that, and the
+    # reconstruction's small systematic errors bias strong fits by about
+    # as much.
+    stated = None if sx is None or scored["at_bound"] else max(sx, spread or 0.0, REFINE_XATOL)
+    return {
+        "parameter": main,
+        "std": _json_number(value * stated) if stated is not None and value > 0 else None,
+        "relative": _json_number(stated),
+        "interval_68": ([value * math.exp(-stated), value * math.exp(stated)]
+                        if stated is not None and value > 0 else None),
+        "profile_relative": _json_number(sx),
+        "fold_values": scored["fold_values"],
+        "method": "largest of the chi2(ln p) profile curvature (scaled by the residual's dispersion and "
+                  "autocorrelation), half the spread of the two folds' estimates and the search tolerance "
+                  f"({REFINE_XATOL:g} in ln p); none at a range bound",
+    }
+
+
 def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candidates=None, workers=2,
              seed=0, source=None, progress=None):
     """Diagnose a measured trajectory table against the nominal model.
@@ -561,28 +602,7 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
             fitted_series[c["name"]] = M - res
         else:
             frac, sig_match = 0.0, 0.0
-        sx = profile_uncertainty(s["profile"], value, kappa)
-        fold_x = [math.log(v) for v in s["fold_values"] if v > 0]
-        spread = abs(fold_x[0] - fold_x[1]) / 2.0 if len(fold_x) == 2 else None
-        # The fold estimates are discrete choices among evaluated points, so
-        # their spread alone may be 0: only a measured curvature states one.
-        # Never below the search's own resolution in ln p (REFINE_XATOL): the
-        # optimum is not located more finely than that, and the
-        # reconstruction's small systematic errors bias strong fits by about
-        # as much.
-        stated = None if sx is None or s["at_bound"] else max(sx, spread or 0.0, REFINE_XATOL)
-        uncertainty = {
-            "parameter": main,
-            "std": _json_number(value * stated) if stated is not None and value > 0 else None,
-            "relative": _json_number(stated),
-            "interval_68": ([value * math.exp(-stated), value * math.exp(stated)]
-                            if stated is not None and value > 0 else None),
-            "profile_relative": _json_number(sx),
-            "fold_values": s["fold_values"],
-            "method": "largest of the chi2(ln p) profile curvature (scaled by the residual's dispersion and "
-                      "autocorrelation), half the spread of the two folds' estimates and the search tolerance "
-                      f"({REFINE_XATOL:g} in ln p); none at a range bound",
-        }
+        uncertainty = _uncertainty(s, main, kappa)
         rms_ch = {}
         for j, ch in enumerate(channels):
             before = r0[:, j]
@@ -717,6 +737,6 @@ def write_diagnosis_json(path, doc):
 
 def write_diagnosis_report(path, diagnosis):
     """Write the diagnosis PDF (see ``_diagnose_report``)."""
-    from ._diagnose_report import write_report_pdf  # noqa: PLC0415
+    from ._diagnose_report import write_report_pdf
 
     write_report_pdf(path, diagnosis)

@@ -76,10 +76,10 @@ def default_cases(quick=False, seed=0):
 
 def _run_case(name, value, seed, workdir):
     """Make one blind session, diagnose it from its directory alone, score it here."""
-    from ..capture import synthesize_session  # noqa: PLC0415
-    from ..capture._lab import default_lab_cameras  # noqa: PLC0415
-    from ..capture._session_io import write_session_dir  # noqa: PLC0415
-    from ._diagnose import diagnose_path  # noqa: PLC0415
+    from ..capture import synthesize_session
+    from ..capture._lab import default_lab_cameras
+    from ..capture._session_io import write_session_dir
+    from ._diagnose import diagnose_path
 
     folder = os.path.join(workdir, f"case{seed}")
     started = time.perf_counter()
@@ -255,7 +255,7 @@ def bench_command(args):
     Reads ``args.seed`` and, when the bench command has them, ``args.quick``
     and ``args.workers``.
     """
-    import sys  # noqa: PLC0415
+    import sys
 
     report = bench_discovery(workers=getattr(args, "workers", 2) or 2, seed=args.seed,
                              quick=bool(getattr(args, "quick", False)),

@@ -43,8 +43,9 @@ Gaussian noise from its smoothed cross-spectral matrix; for each, every candidat
 simulation) is fitted with a non-negative amplitude on one fold and scored
 on the other exactly as above. The threshold is the ``NULL_QUANTILE``
 quantile of the largest improvement over candidates (a family-wise test),
-and never below ``MIN_IMPROVEMENT`` (about ln N, the BIC penalty of one
-parameter). A candidate is significant when ``D`` exceeds it; ``score`` is
+and never below ``MIN_IMPROVEMENT`` (ten times ln N, the BIC penalty of
+one parameter: an allowance for the reconstruction's systematic errors,
+measured on blind sessions, see the constant). A candidate is significant when ``D`` exceeds it; ``score`` is
 ``D / threshold``.
 
 Parameter uncertainty
@@ -66,7 +67,14 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from ..simulate import MECHANISMS, SimulationError, assemble, parse_physics, simulate, stable_time_step
+from ..simulate import (
+    MECHANISMS,
+    SimulationError,
+    assemble,
+    parse_physics,
+    simulate,
+    stable_time_step,
+)
 
 __all__ = [
     "RANGES",
@@ -102,7 +110,13 @@ REFINE_XATOL = 0.02  # in ln p: 2 %
 NULL_SURROGATES = 400
 SPECTRUM_SMOOTH = 8  # frequency bins either side (0.8 Hz for a 10 s record)
 NULL_QUANTILE = 0.99
-MIN_IMPROVEMENT = 10.0
+# Floor of the threshold, in chi2 units (a signature of 10 noise sigmas in
+# quadrature). The surrogates model what is left as stationary Gaussian
+# noise; the reconstruction's systematic errors are not (the cubic fit of a
+# rope's markers errs by a few tenths of a millimetre, smoothly, with the
+# rope's shape), and a one-parameter fit absorbs some of them: in 9 blind
+# no-physics sessions the best candidate's held-out improvement reached 50.
+MIN_IMPROVEMENT = 100.0
 # A fitted value in the outermost part of its range is "at the bound".
 BOUND_TOLERANCE = 0.05  # in ln p
 # Verdict policy (see ``decide``).
@@ -524,7 +538,7 @@ def _spectral_factor(z):
     frequencies on either side gives a spectrum estimate to draw Gaussian
     surrogates from.
     """
-    from scipy.ndimage import uniform_filter1d  # noqa: PLC0415
+    from scipy.ndimage import uniform_filter1d
 
     spec = np.fft.rfft(z, axis=0)
     cross = spec[:, :, None] * spec.conj()[:, None, :]

@@ -14,6 +14,8 @@ def add_parser(sub):
     p.add_argument("--json", metavar="FILE", help="also write the figures to FILE")
     p.add_argument("--repeats", type=int, default=5, help="timed runs per figure (median reported)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--quick", action="store_true", help="discovery: the reduced case list")
+    p.add_argument("--workers", type=int, default=2, help="discovery: parallel processes")
 
 
 def _simulate(args):

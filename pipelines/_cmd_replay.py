@@ -10,6 +10,7 @@ def add_parser(sub):
     p.add_argument("--out", required=True, metavar="OUT_DIR")
     p.add_argument("--maneuver", metavar="dig|FILE.csv")
     p.add_argument("--no-study", action="store_true")
+    p.add_argument("--no-diagnose", action="store_true")
     p.add_argument("--force", action="store_true")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--json", action="store_true")

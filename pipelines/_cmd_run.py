@@ -16,6 +16,7 @@ def add_parser(sub):
     p.add_argument("--config", metavar="FILE.toml", help="stage options (see the README's Configuration)")
     p.add_argument("--seed", type=int, default=None, help="seed of the built-in session (default 0)")
     p.add_argument("--no-study", action="store_true", help="skip the discretization study (Fig. 21)")
+    p.add_argument("--no-diagnose", action="store_true", help="skip the missing-physics diagnosis")
     p.add_argument("--verbose", action="store_true", help="print each stage's time as it ends")
     p.add_argument("--force", action="store_true", help="replace a non-empty output directory")
     p.add_argument("--quiet", action="store_true", help="print only the final summary")
@@ -33,6 +34,7 @@ def run(args):
         maneuver = dig_maneuver() if args.maneuver == "dig" else read_maneuver_csv(args.maneuver)
     seed = args.seed if args.seed is not None else int(config["run"]["seed"])
     study = config["run"]["study"] and not args.no_study
+    config["run"]["diagnose"] = config["run"]["diagnose"] and not getattr(args, "no_diagnose", False)
     summary = run_pipeline(args.source, args.out, seed=seed, maneuver=maneuver, study=study, quiet=args.quiet,
                            force=args.force, config=config, verbose=getattr(args, "verbose", False))
     if args.json:
@@ -49,5 +51,16 @@ def run(args):
     if ratio:
         print(f"free decay after the reels stop: the measurement damps {ratio:.1f}x faster than the model "
               "(median damping-ratio ratio over the channels)")
+    found = summary.get("diagnosis")
+    if found:
+        line = f"diagnosis: {found['verdict']}"
+        best = found.get("best")
+        if best and best.get("name") == found["verdict"]:
+            params = ", ".join(f"{k}={v:.3g}" for k, v in (best.get("parameters") or {}).items() if isinstance(v, float))
+            line += (f" ({params}); held-out residual {best['rms_before']:.2f} -> {best['rms_after']:.2f} "
+                     "x the measurement noise")
+        elif found.get("reason"):
+            line += f" ({found['reason']})"
+        print(line)
     print(f"report: {summary['out']}/report.pdf")
     return 0

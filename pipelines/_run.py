@@ -31,7 +31,7 @@ BUILTIN_DURATION_S = 12.0  # 5.5 s of free decay after the reels stop at 6.5 s
 
 # Options a --config file may set, with their defaults (README: "Configuration").
 DEFAULTS = {
-    "run": {"seed": 0, "study": True},
+    "run": {"seed": 0, "study": True, "diagnose": True},
     "simulate": {"rig": None, "maneuver": None, "discretization": "baseline"},
     "reconstruct": {"method": "paper", "smoothing": "running_average", "max_gap": 10},
 }
@@ -68,7 +68,7 @@ def read_config(path):
 class _Stages:
     """Times each stage and shows progress on stderr (a bar on a terminal)."""
 
-    def __init__(self, quiet, verbose=False, total=8):
+    def __init__(self, quiet, verbose=False, total=9):
         self.quiet, self.verbose = quiet, verbose
         self.times = {}
         self.bar = None
@@ -202,12 +202,24 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
           sources={"measured": "measured.csv", "simulated": f"nominal model, {discretization} discretization"})
     files["report"] = str(tmp / "report.pdf")
 
+    summary = {"files": files, "stage_seconds": stage.times, "comparison": _headline(metrics)}
+    if config["run"]["diagnose"]:
+        from dragline.compare import diagnose, write_diagnosis_json, write_diagnosis_report
+
+        found = stage("diagnose the missing physics", diagnose, measured, maneuver, rig, discretization, workers=2,
+                      seed=seed)
+        write_diagnosis_json(tmp / "diagnosis.json", found.doc)
+        write_diagnosis_report(tmp / "diagnosis.pdf", found)
+        files["diagnosis"] = str(tmp / "diagnosis.json")
+        files["diagnosis_report"] = str(tmp / "diagnosis.pdf")
+        summary["diagnosis"] = _verdict(found.doc)
+
     ropes = {"simulated/" + r: result.rope_nodes(r) for r in ("hoist_rope", "drag_rope", "dump_rope")}
     markers = {"measured": points} if points is not None else None
     stage("write results.mcap", write_results, tmp / "results.mcap", {"measured": measured, "simulated": simulated},
           markers=markers, ropes=ropes)
     files["results"] = str(tmp / "results.mcap")
-    return {"files": files, "stage_seconds": stage.times, "comparison": _headline(metrics)}
+    return summary
 
 
 def _builtin_session(tmp, seed, rig):
@@ -235,6 +247,15 @@ def _maneuver_of(session):
     if not m or "time" not in m:
         raise ValueError("the session holds no maneuver table: give one with --maneuver")
     return Maneuver(m["time"], m["hoist_length"], m["drag_length"])
+
+
+def _verdict(doc):
+    """The diagnosis in brief: the verdict and the best hypothesis's fit."""
+    out = {"verdict": doc.get("verdict"), "reason": doc.get("reason")}
+    if doc.get("hypotheses"):
+        best = doc["hypotheses"][0]
+        out["best"] = {k: best.get(k) for k in ("name", "parameters", "rms_before", "rms_after")}
+    return out
 
 
 def _headline(metrics):

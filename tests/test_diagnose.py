@@ -14,10 +14,13 @@ import os
 import numpy as np
 import pandas as pd
 import pytest
-
 from dragline.compare._diagnose import diagnose, load_recording
 from dragline.compare._hypotheses import Problem, null_threshold
-from dragline.compare._locate import DYNAMIC_CHANNELS, low_pass, noise_level, time_windows
+from dragline.compare._locate import (
+    low_pass,
+    noise_level,
+    time_windows,
+)
 from dragline.pipelines.cli import main
 from dragline.simulate import (
     dig_maneuver,
@@ -258,3 +261,12 @@ def test_session_directory_is_diagnosed_from_the_motion_alone(tmp_path, nominal_
     doc = diagnose(table, maneuver, candidates=["aero_drag"], workers=2).doc
     assert doc["verdict"] == "none", doc["reason"]
     assert pd.Series([e["noise"] for e in doc["channels"].values()]).max() < 0.02
+
+
+def test_report_is_deterministic(tmp_path, aero_diagnosis):
+    from dragline.compare._diagnose import write_diagnosis_report
+
+    a, b = tmp_path / "a.pdf", tmp_path / "b.pdf"
+    write_diagnosis_report(a, aero_diagnosis)
+    write_diagnosis_report(b, aero_diagnosis)
+    assert a.read_bytes().startswith(b"%PDF") and a.read_bytes() == b.read_bytes()
