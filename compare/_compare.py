@@ -26,6 +26,8 @@ import numpy as np
 
 from ..simulate import (
     DISCRETIZATION_LEVELS,
+    SimulationError,
+    StaticsError,
     euler_rates_from_body_rates,
     simulate,
     trajectory_columns,
@@ -465,7 +467,7 @@ def discretization_study(rig=None, maneuver=None, physics=(), duration=10.0, rat
     for level in levels:
         try:
             result = simulate(rig, maneuver, level, physics, duration=duration, rate_hz=rate_hz)
-        except RuntimeError as exc:  # SimulationError (blow-up) or statics without an equilibrium
+        except (SimulationError, StaticsError) as exc:  # a blow-up, or no static pose at this level
             out[level] = {"table": None, "n_state": None, "error": " ".join(str(exc).split())}
             continue
         out[level] = {"table": result.table, "n_state": int(result.model.n_state), "error": None}

@@ -4,9 +4,10 @@ Two stages, as Costello and Kyle (2004) did it and then some:
 1. dynamic relaxation: the full model with the reels frozen and heavy
    velocity damping added, from a rough hanging pose, until it is nearly
    at rest;
-2. a damped Newton polish of the static balance itself: net force on every particle and body, net moment on every
-   body, and tension balance across every ring pulley, with every Maxwell
-   branch relaxed (Eq. 8's steady state: F = Ks times strain).
+2. a damped Newton polish of the static balance itself: net force on every
+   particle and body, net moment on every body, and tension balance across
+   every ring pulley, with every Maxwell branch relaxed (Eq. 8's steady
+   state: F = Ks times strain).
 The result is a state with zero velocities and steady element forces, from
 which ``simulate`` starts.
 """
@@ -19,9 +20,13 @@ import numpy as np
 
 from . import _kernel
 from ._kernel import KIND_PARTICLE
-from ._model import rough_body_positions
+from ._model import KERNEL_FIELDS, rough_body_positions
 
-__all__ = ["Equilibrium", "solve_statics"]
+__all__ = ["Equilibrium", "StaticsError", "solve_statics"]
+
+
+class StaticsError(ValueError):
+    """No equilibrium at these rope lengths: bad input (exit code 2), not a crash."""
 
 
 @dataclass(frozen=True)
@@ -47,8 +52,6 @@ def _frozen(model, t):
     a["reel_t"] = np.array([0.0])
     a["reel_len"] = np.array([[float(h), float(d)]])
     a["point_pos"] = model.fixed_positions(t)
-    from ._model import KERNEL_FIELDS
-
     return a, KERNEL_FIELDS
 
 
@@ -119,7 +122,7 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
 
     Raises
     ------
-    RuntimeError
+    StaticsError
         When no equilibrium is found (the rig cannot hang at these lengths).
     """
     arrays, fields = _frozen(model, t)
@@ -133,7 +136,7 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     for _ in range(int(np.ceil(max_relax_time))):
         rec, status, _, _ = _kernel.integrate(y, 0.0, dt, chunk, chunk, m, work, 1e3)
         if status != _kernel.STATUS_OK:
-            raise RuntimeError("statics: relaxation diverged")
+            raise StaticsError(f"no static equilibrium at the rope lengths of t = {t:g} s (relaxation diverged)")
         y = rec[-1].copy()
         if np.max(np.abs(y[speed_index]), initial=0.0) < 1e-4:  # m/s: close enough for Newton
             break
@@ -157,7 +160,8 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     rest[unknown] = q
     worst = float(np.max(np.abs(residual(q)), initial=0.0))
     if not np.isfinite(worst) or worst > tol:
-        raise RuntimeError(f"statics: no equilibrium found (largest imbalance {worst:.3g} N)")
+        raise StaticsError(f"no static equilibrium at the rope lengths of t = {t:g} s "
+                           f"(largest force imbalance left {worst:.3g} N)")
     return Equilibrium(state=rest.copy(), residual=worst)
 
 

@@ -120,3 +120,14 @@ def test_known_mechanisms_change_the_motion(rig):
     a = simulate(rig, still, duration=0.5, rate_hz=50).table
     b = simulate(rig, still, physics=[parse_physics("aero_drag:cd=1.2")], duration=0.5, rate_hz=50).table
     np.testing.assert_allclose(a["bucket.z"], b["bucket.z"], atol=1e-9)
+
+
+def test_rope_lengths_the_rig_cannot_hang_at_exit_2(tmp_path, capsys):
+    # 1 m of hoist rope cannot even reach from the reel to the boom pulley
+    path = tmp_path / "m.csv"
+    path.write_text("time,hoist_length,drag_length\n0,1.0,4.2\n1,1.0,4.2\n")
+    out = tmp_path / "t.csv"
+    assert main(["simulate", "--maneuver", str(path), "--duration", "0.5", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no static equilibrium" in err[0], err
+    assert not out.exists()
