@@ -27,7 +27,6 @@ free decay) raises ``ValueError`` with one line.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import time as _time
@@ -72,6 +71,7 @@ from ._hypotheses import (
     signature_match,
     unavailable_reason,
 )
+from ._files import write_json
 from ._locate import (
     DYNAMIC_CHANNELS,
     LOWPASS_S,
@@ -723,16 +723,7 @@ def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretizatio
 
 def write_diagnosis_json(path, doc):
     """Write the diagnosis JSON atomically (strict JSON, no NaN)."""
-    path = os.fspath(path)
-    text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
-    tmp = f"{path}.tmp{os.getpid()}"
-    try:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    write_json(path, doc)
 
 
 def write_diagnosis_report(path, diagnosis):

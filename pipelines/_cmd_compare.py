@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 
 import numpy as np
 
 from dragline.compare import compare_tables, discretization_study, read_trajectory_table, write_report
+from dragline.compare._files import write_json
 
 from ._options import check_output_path, maneuver_from_args, physics_from_args, rig_from_args
 
@@ -54,18 +54,6 @@ def _time_offset(text):
     return value
 
 
-def _write_json(path, metrics):
-    text = json.dumps(metrics, indent=1, allow_nan=False) + "\n"
-    tmp = f"{path}.tmp{os.getpid()}"
-    try:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-
-
 def run(args):
     if not args.report and not args.json:
         raise ValueError("compare: give --report REPORT.pdf and/or --json METRICS.json")
@@ -91,7 +79,7 @@ def run(args):
     metrics = compare_tables(measured, simulated, time_offset=offset, free_decay_start=args.free_decay_start,
                              max_offset=args.max_offset, study=study)
     if args.json:
-        _write_json(args.json, metrics)
+        write_json(args.json, metrics)
     if args.report:
         sources = {"measured": os.path.basename(args.measured), "simulated": os.path.basename(args.simulated)}
         write_report(args.report, measured, simulated, metrics, study=study, sources=sources)

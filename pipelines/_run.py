@@ -15,7 +15,6 @@ under the final name.
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import sys
@@ -148,6 +147,7 @@ def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False
 def _run_into(source, tmp, seed, maneuver, study, stage, config):
     from dragline.capture import calibrate, read_session, save_cameras, write_results
     from dragline.compare import compare_tables, discretization_study, write_report
+    from dragline.compare._files import write_json
     from dragline.reconstruct import reconstruct_session, reconstruct_vicon_csv
     from dragline.simulate import dig_maneuver, load_rig, read_maneuver_csv, simulate, write_trajectory_csv
 
@@ -196,7 +196,7 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
 
     studied = stage("discretization study", discretization_study, rig, maneuver, duration=duration) if study else None
     metrics = stage("compare", compare_tables, measured, simulated, study=studied)
-    _write_json(tmp / "metrics.json", metrics)
+    write_json(tmp / "metrics.json", metrics)
     files["metrics"] = str(tmp / "metrics.json")
     stage("write the report", write_report, tmp / "report.pdf", measured, simulated, metrics, study=studied,
           sources={"measured": "measured.csv", "simulated": f"nominal model, {discretization} discretization"})
@@ -265,10 +265,3 @@ def _headline(metrics):
     if decay:
         out["damping_ratio_measured_over_model"] = decay.get("median")
     return out
-
-
-def _write_json(path, doc):
-    tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "w") as fh:
-        json.dump(doc, fh, indent=2, sort_keys=True, default=float)
-    os.replace(tmp, path)

@@ -338,16 +338,21 @@ def rhs(t, y, dy, m, work):
         dy[o_ring + 2 * rg + 1] = (meanA - meanB) / mass - relax_damping * vs
 
 
+@njit(cache=True, inline="always")
+def _offsets(m):
+    """Where the particles' positions and velocities, the forces and the rings start in the state."""
+    o_part = 12 * m[0]
+    o_vel = o_part + 3 * m[5].shape[0]
+    o_F = o_vel + 3 * m[5].shape[0]
+    return o_part, o_vel, o_F, o_F + m[6].shape[0]
+
+
 @njit(cache=True)
 def project(t, y, m, work):
     """Enforce Eq. 8's slack branch: F_m = 0 where s <= L_e."""
     nb = m[0]
-    P = m[5].shape[0]
     E = m[6].shape[0]
-    o_part = 12 * nb
-    o_vel = o_part + 3 * P
-    o_F = o_vel + 3 * P
-    o_ring = o_F + E
+    o_part, o_vel, o_F, o_ring = _offsets(m)
     T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel = work[:12]
     _fixed_points(t, m[27], m[29], fpos, fvel)
     for b in range(nb):
@@ -392,12 +397,8 @@ def dissipate(t, y, dt, m, work):
     if not (has_joints or has_rings):
         return
     nb = m[0]
-    P = m[5].shape[0]
     E = m[6].shape[0]
-    o_part = 12 * nb
-    o_vel = o_part + 3 * P
-    o_F = o_vel + 3 * P
-    o_ring = o_F + E
+    o_part, o_vel, o_F, o_ring = _offsets(m)
     T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel = work[:12]
     el_u, el_len, el_T, el_arm = work[14:18]
     el_seg, el_side, el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m[6], m[7], m[8], m[9], m[10], m[11], m[12], m[13]
