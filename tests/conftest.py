@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
@@ -24,3 +26,19 @@ def dig_baseline(rig):
     from dragline.simulate import simulate
 
     return simulate(rig, duration=10.0, rate_hz=200.0)
+
+
+def synthetic_table(t, reel_columns=True):
+    """A trajectory table of smooth made-up channels over the dig's reel table."""
+    from dragline.simulate import dig_maneuver, trajectory_columns
+
+    cols = {"time": t}
+    for k, ch in enumerate(trajectory_columns()[1:-2]):
+        cols[ch] = 0.3 * np.sin(2 * np.pi * (0.2 + 0.01 * k) * t + k) + 0.01 * k * t
+    hoist, drag = dig_maneuver().lengths_at(t)
+    tau = np.clip(t - 6.5, 0.0, None)
+    cols["hoist_rope.length"] = hoist + 0.02 * np.sin(4.0 * tau) * np.exp(-0.3 * tau)
+    cols["drag_rope.length"] = drag
+    if reel_columns:
+        cols["hoist_rope.reel_length"], cols["drag_rope.reel_length"] = hoist, drag
+    return pd.DataFrame(cols)

@@ -8,22 +8,10 @@ import pandas as pd
 import pytest
 
 from dragline.pipelines.cli import main
-from dragline.simulate import dig_maneuver, trajectory_columns
+from conftest import synthetic_table
 
 T = np.round(np.arange(0.0, 10.0 + 1e-9, 0.02), 10)
 
-
-def synthetic_table(t, reel_columns=True):
-    cols = {"time": t}
-    for k, ch in enumerate(trajectory_columns()[1:-2]):
-        cols[ch] = 0.3 * np.sin(2 * np.pi * (0.2 + 0.01 * k) * t + k) + 0.01 * k * t
-    hoist, drag = dig_maneuver().lengths_at(t)
-    tau = np.clip(t - 6.5, 0.0, None)
-    cols["hoist_rope.length"] = hoist + 0.02 * np.sin(4.0 * tau) * np.exp(-0.3 * tau)
-    cols["drag_rope.length"] = drag
-    if reel_columns:
-        cols["hoist_rope.reel_length"], cols["drag_rope.reel_length"] = hoist, drag
-    return pd.DataFrame(cols)
 
 
 @pytest.fixture()

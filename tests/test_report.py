@@ -12,12 +12,11 @@ import math
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from dragline.compare import compare_tables, write_report
 from dragline.compare._paper import FIG21_CAPTION, FIGURES
-from dragline.simulate import dig_maneuver, trajectory_columns
+from conftest import synthetic_table
 
 pypdf = pytest.importorskip("pypdf")
 
@@ -27,18 +26,6 @@ T = np.round(np.arange(0.0, 10.0 + 1e-9, 0.02), 10)
 # Summary + all channels, Figs. 8-20 two per page, free-decay text and plots, Fig. 21.
 PAGES_WITHOUT_STUDY = 2 + math.ceil(len(FIGURES) / 2) + 2
 
-
-def synthetic_table(t, reel_columns=True):
-    cols = {"time": t}
-    for k, ch in enumerate(trajectory_columns()[1:-2]):
-        cols[ch] = 0.3 * np.sin(2 * np.pi * (0.2 + 0.01 * k) * t + k) + 0.01 * k * t
-    hoist, drag = dig_maneuver().lengths_at(t)
-    tau = np.clip(t - 6.5, 0.0, None)
-    cols["hoist_rope.length"] = hoist + 0.02 * np.sin(4.0 * tau) * np.exp(-0.3 * tau)
-    cols["drag_rope.length"] = drag
-    if reel_columns:
-        cols["hoist_rope.reel_length"], cols["drag_rope.reel_length"] = hoist, drag
-    return pd.DataFrame(cols)
 
 
 def pages_text(path):
