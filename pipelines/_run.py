@@ -125,8 +125,14 @@ def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False
     if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not force)):
         raise ValueError(f"output {out} exists and is not empty (use --force to replace it)")
     parent = out.resolve().parent
-    if not parent.is_dir() or not os.access(parent, os.W_OK):
-        raise ValueError(f"output folder {parent} does not exist or is not writable")
+    try:
+        # An output directory is made like `mkdir -p`: scripts name nested
+        # result folders (CI writes dragline-out/ci/...) on a fresh clone.
+        parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"cannot create output folder {parent}: {exc.strerror}") from None
+    if not os.access(parent, os.W_OK):
+        raise ValueError(f"output folder {parent} is not writable")
     tmp = parent / f".{out.name}.partial-{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()

@@ -50,7 +50,7 @@ def test_builtin_recording_damps_faster_than_the_model(demo):
 
 def test_replay_of_the_session_gives_the_same_measurement(demo, tmp_path):
     out, _ = demo
-    again = tmp_path / "replay"
+    again = tmp_path / "results" / "nested" / "replay"  # parents made like mkdir -p
     assert main(["replay", str(out / "session" / "capture.mcap"), "--out", str(again), "--no-study", "--no-diagnose", "--quiet"]) == 0
     a = pd.read_csv(out / "measured.csv")
     b = pd.read_csv(again / "measured.csv")
@@ -66,8 +66,9 @@ def test_bad_inputs_exit_2_and_leave_nothing(tmp_path, capsys):
     junk = tmp_path / "junk.mcap"
     junk.write_bytes(b"not an mcap file")
     assert main(["replay", str(junk), "--out", str(tmp_path / "o2")]) == 2
+    assert main(["run", "--out", str(junk / "o3"), "--quiet"]) == 2  # a file stands where its folder must
     lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 3 and all(line.startswith("dragline: error:") for line in lines), lines
+    assert len(lines) == 4 and all(line.startswith("dragline: error:") for line in lines), lines
     assert (busy / "keep.txt").read_text() == "mine"
     assert not (tmp_path / "o1").exists() and not (tmp_path / "o2").exists()
     assert not list(tmp_path.glob(".*partial*"))
