@@ -1,0 +1,54 @@
+"""``dragline bench discovery``'s scoring: case list and summary on hand-built results."""
+
+import math
+
+import pytest
+from dragline.compare._discovery_bench import MAGNITUDES, _summarise, default_cases
+from dragline.compare._hypotheses import N_GRID
+from dragline.simulate import MECHANISMS
+
+
+def test_case_magnitudes_sit_inside_the_range_and_off_the_fit_grid():
+    # A truth at a bound or on a grid point is "found" exactly by construction.
+    for name, values in MAGNITUDES.items():
+        lo, hi = MECHANISMS[name]["range"]
+        grid = [math.log(lo) + k * (math.log(hi) - math.log(lo)) / (N_GRID - 1) for k in range(N_GRID)]
+        for v in values:
+            assert lo < v < hi, (name, v)
+            assert min(abs(math.log(v) - g) for g in grid) > 0.1, (name, v)
+
+
+def test_default_cases_hold_enough_no_physics_cases_with_distinct_seeds():
+    cases = default_cases()
+    n_none = sum(name is None for name, _, _ in cases)
+    assert n_none / len(cases) >= 0.2
+    assert len({seed for _, _, seed in cases}) == len(cases)
+    assert {name for name, _, _ in cases} - {None} == set(MECHANISMS)
+
+
+def _case(truth, value, verdict, rel=None):
+    return {"truth": truth, "value": value, "verdict": verdict, "relative_error": rel,
+            "covered": rel is not None and abs(rel) < 0.1, "diagnosis_seconds": 60.0}
+
+
+def test_summary_counts_verdicts_false_positives_and_the_reliable_threshold():
+    results = [
+        _case("aero_drag", 0.15, "none"),
+        _case("aero_drag", 0.5, "aero_drag", 0.4),
+        _case("aero_drag", 1.6, "aero_drag", -0.1),
+        _case("aero_drag", 5.5, "aero_drag", 0.05),
+        _case("pulley_inertia", 1e-5, "pulley_inertia", 0.9),  # found, but not at every larger value
+        _case("pulley_inertia", 1e-4, "unexplained"),
+        _case("pulley_inertia", 1e-3, "pulley_inertia", 0.02),
+        _case("none", 0.0, "none"),
+        _case("none", 0.0, "aero_drag"),
+        _case("none", 0.0, "unexplained"),
+    ]
+    report = _summarise(results, wall=1.0, workers=2)
+    assert report["accuracy"] == pytest.approx(6 / 10)
+    assert report["false_positive_rate"] == pytest.approx(1 / 3)  # "unexplained" names nothing
+    assert report["confusion"]["none"]["aero_drag"] == 1
+    assert report["smallest_found"] == {"aero_drag": 0.5, "pulley_inertia": 1e-3}
+    assert report["parameter_error"]["aero_drag"]["median_abs_relative_error"] == pytest.approx(0.1)
+    # reliable: aero 0.4, 0.1, 0.05 and inertia 0.02 -> median 0.075
+    assert report["median_abs_relative_error_reliable"] == pytest.approx(0.075)
