@@ -16,5 +16,6 @@ from ._model import Model, assemble
 from ._physics import MECHANISMS, Mechanism, mechanism_names, parse_physics
 from ._rig import DISCRETIZATION_LEVELS, Rig, load_rig, rig_from_dict
 from ._simulate import SimulationError, SimulationResult, simulate
-from ._statics import Equilibrium, StaticsError, solve_statics, stable_time_step
+from ._statics import Equilibrium, StaticsError, solve_statics
+from ._time_step import stable_time_step
 from ._table import BODIES, BODY_QUANTITIES, ROPE_CHANNELS, trajectory_columns, write_trajectory_csv

@@ -19,41 +19,52 @@ LEVELS = ("low", "baseline", "medium", "high")
 _LEVEL_SCRIPT = r"""
 import json, resource, sys, time
 import numpy as np
-from dragline.simulate import assemble, dig_maneuver, load_rig, simulate, stable_time_step
+from dragline.simulate import assemble, dig_maneuver, load_rig, simulate
 from dragline.simulate import _kernel
 from dragline.simulate._statics import solve_statics
+from dragline.simulate._time_step import start_time_step
+from dragline.simulate._tracked import integrate_tracked
 
 level, repeats, duration = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
 rig, man = load_rig(), dig_maneuver()
 model = assemble(rig, man, level)
 t = time.perf_counter(); eq = solve_statics(model); statics = [time.perf_counter() - t]
-dt = stable_time_step(model)
-per = int(np.ceil(1 / 200 / dt)); dt = 1 / 200 / per
 m = model.kernel_tuple(); work = _kernel.make_work(m)
-n = int(round(duration * 200)) * per
-def run(step, steps):
+out_dt = 1 / 200
+n_rec = int(round(duration * 200))
+def run():
+    # what simulate() does after the statics: the step at the start, then the tracked run
     t = time.perf_counter()
-    every = max(1, steps // int(round(duration * 200)))
-    rec, status, _, _ = _kernel.integrate(eq.state, 0.0, step, steps, every, m, work, 100.0)
+    dt0, lam0 = start_time_step(model, eq.state, 0.0)
+    chosen = time.perf_counter() - t
+    rec, sub, status, _, _ = integrate_tracked(eq.state, 0.0, out_dt, n_rec, dt0, lam0, m, work, 100.0)
     assert status == 0
-    return time.perf_counter() - t, rec
-run(dt, per)  # warm-up: loads the compiled kernel
-walls = []
+    return time.perf_counter() - t, chosen, rec, sub
+integrate_tracked(eq.state, 0.0, out_dt, 1, 1e-4, 1.0, m, work, 100.0)  # warm-up: loads the compiled kernel
+walls, chosen = [], []
 for _ in range(repeats):
-    wall, rec = run(dt, n)
-    walls.append(wall)
+    wall, pick, rec, sub = run()
+    walls.append(wall); chosen.append(pick)
 for _ in range(max(0, repeats - 1)):
     t = time.perf_counter(); solve_statics(model); statics.append(time.perf_counter() - t)
-_, ref = run(dt / 8, 8 * n)
+calls = []
+for _ in range(max(1, repeats // 2)):
+    t = time.perf_counter(); simulate(rig, man, level, duration=duration); calls.append(time.perf_counter() - t)
+smallest = out_dt / sub.max()
+per = 8 * int(sub.max())
+ref, status, _, _ = _kernel.integrate(eq.state, 0.0, out_dt / per, n_rec * per, per, m, work, 100.0)
 pos = 1e3 * np.max(np.linalg.norm(rec[:, 0:3] - ref[:, 0:3], axis=1))
 pitch = np.degrees(np.max(np.abs(rec[:, 7] - ref[:, 7])))
 print(json.dumps({
     "wall_s": float(np.median(walls)), "wall_runs_s": walls,
+    "step_selection_s": float(np.median(chosen)),
     "statics_s": float(np.median(statics)),
+    "simulate_call_s": float(np.median(calls)),
     "real_time_factor": duration / float(np.median(walls)),
-    "states": model.n_state, "dt_s": dt, "steps": n,
+    "states": model.n_state, "dt_start_s": out_dt / int(sub[0]), "dt_smallest_s": smallest,
+    "steps": int(sub.sum()),
     "error_bucket_position_mm": float(pos), "error_bucket_pitch_deg": float(pitch),
-    "reference": "same level, step / 8",
+    "reference": "same level, fixed step = smallest tracked step / 8",
     "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
 }))
 """
@@ -82,8 +93,10 @@ def bench_simulate(levels=LEVELS, repeats=5, duration=10.0, moordyn=True):
     dict
         ``{level: {wall_s, statics_s, real_time_factor, error_bucket_position_mm,
         error_bucket_pitch_deg, peak_memory_mb, ...}, "compile": {...},
-        "moordyn": {...}}``. ``wall_s`` is the integration of the maneuver
-        (median of ``repeats``), ``statics_s`` the equilibrium before it.
+        "moordyn": {...}}``. ``wall_s`` is what ``simulate`` does after
+        the statics (the starting step from the spectrum, then the tracked
+        RK4 run; median of ``repeats``), ``statics_s`` the equilibrium
+        before it, ``simulate_call_s`` one whole ``simulate()`` call.
     """
     report = {"duration_s": duration, "repeats": repeats, "cpu_count": os.cpu_count()}
     with tempfile.TemporaryDirectory() as cache:
@@ -116,7 +129,7 @@ def summary_lines(report):
             r = report[level]
             lines.append(
                 f"{level:9s} {r['states']:4d} states  wall {r['wall_s']:.2f} s (x{r['real_time_factor']:.1f} real time)  "
-                f"statics {r['statics_s']:.2f} s  error {r['error_bucket_position_mm']:.4f} mm / {r['error_bucket_pitch_deg']:.5f} deg  "
+                f"statics {r['statics_s']:.2f} s  whole call {r['simulate_call_s']:.2f} s  {r['steps']} steps  error {r['error_bucket_position_mm']:.4f} mm / {r['error_bucket_pitch_deg']:.5f} deg  "
                 f"peak {r['peak_memory_mb']:.0f} MB"
             )
     return lines

@@ -44,7 +44,8 @@ from ._maneuver import Maneuver
 from ._model import assemble
 from ._rig import rig_from_dict
 from ._simulate import simulate
-from ._statics import solve_statics, stable_time_step
+from ._statics import solve_statics
+from ._time_step import stable_time_step
 
 __all__ = ["bench_moordyn", "line_rig", "line_maneuver", "MoorDynLine"]
 

@@ -594,6 +594,45 @@ def make_work(m):
     )
 
 
+@njit(cache=True, inline="always")
+def rk4_step(t, h, y, k1, k2, k3, k4, tmp, m, work):
+    """One classical RK4 step of length h from (t, y), in place; then slack and dissipation."""
+    n = y.shape[0]
+    half = 0.5 * h
+    rhs(t, y, k1, m, work)
+    for i in range(n):
+        tmp[i] = y[i] + half * k1[i]
+    rhs(t + half, tmp, k2, m, work)
+    for i in range(n):
+        tmp[i] = y[i] + half * k2[i]
+    rhs(t + half, tmp, k3, m, work)
+    for i in range(n):
+        tmp[i] = y[i] + h * k3[i]
+    rhs(t + h, tmp, k4, m, work)
+    sixth = h / 6.0
+    for i in range(n):
+        y[i] += sixth * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+    project(t + h, y, m, work)
+    dissipate(t + h, y, h, m, work)
+
+
+@njit(cache=True, inline="always")
+def first_bad(y, nb, P, max_speed):
+    """(status, state index) of the first non-finite value or runaway speed; (STATUS_OK, -1) if none."""
+    for i in range(y.shape[0]):
+        if not np.isfinite(y[i]):
+            return STATUS_NONFINITE, i
+    for i in range(nb):
+        for k in range(3):
+            if abs(y[12 * i + 3 + k]) > max_speed:
+                return STATUS_RUNAWAY, 12 * i + 3 + k
+    o_vel = 12 * nb + 3 * P
+    for i in range(3 * P):
+        if abs(y[o_vel + i]) > max_speed:
+            return STATUS_RUNAWAY, o_vel + i
+    return STATUS_OK, -1
+
+
 @njit(cache=True)
 def integrate(y0, t0, dt, n_steps, record_every, m, work, max_speed):
     """Fixed-step classical RK4 from ``t0``; records every ``record_every`` steps.
@@ -621,35 +660,11 @@ def integrate(y0, t0, dt, n_steps, record_every, m, work, max_speed):
     records[0] = y
     nb = m[0]
     P = m[5].shape[0]
-    o_vel = 12 * nb + 3 * P
-    half = 0.5 * dt
-    sixth = dt / 6.0
     for step in range(n_steps):
-        t = t0 + step * dt
-        rhs(t, y, k1, m, work)
-        for i in range(n):
-            tmp[i] = y[i] + half * k1[i]
-        rhs(t + half, tmp, k2, m, work)
-        for i in range(n):
-            tmp[i] = y[i] + half * k2[i]
-        rhs(t + half, tmp, k3, m, work)
-        for i in range(n):
-            tmp[i] = y[i] + dt * k3[i]
-        rhs(t + dt, tmp, k4, m, work)
-        for i in range(n):
-            y[i] += sixth * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
-        project(t + dt, y, m, work)
-        dissipate(t + dt, y, dt, m, work)
+        rk4_step(t0 + step * dt, dt, y, k1, k2, k3, k4, tmp, m, work)
         if (step + 1) % record_every == 0:
-            for i in range(n):
-                if not np.isfinite(y[i]):
-                    return records[: (step + 1) // record_every], STATUS_NONFINITE, step + 1, i
-            for i in range(nb):
-                for k in range(3):
-                    if abs(y[12 * i + 3 + k]) > max_speed:
-                        return records[: (step + 1) // record_every], STATUS_RUNAWAY, step + 1, 12 * i + 3 + k
-            for i in range(3 * P):
-                if abs(y[o_vel + i]) > max_speed:
-                    return records[: (step + 1) // record_every], STATUS_RUNAWAY, step + 1, o_vel + i
+            status, index = first_bad(y, nb, P, max_speed)
+            if status != STATUS_OK:
+                return records[: (step + 1) // record_every], status, step + 1, index
             records[(step + 1) // record_every] = y
     return records, STATUS_OK, -1, -1

@@ -11,7 +11,9 @@ from . import _kernel
 from ._maneuver import dig_maneuver
 from ._model import assemble
 from ._rig import load_rig
-from ._statics import solve_statics, stable_time_step
+from ._statics import solve_statics
+from ._time_step import start_time_step
+from ._tracked import integrate_tracked
 from ._table import trajectory_columns
 
 __all__ = ["SimulationError", "SimulationResult", "simulate"]
@@ -33,7 +35,7 @@ class SimulationResult:
         Full state at each record.
     model : Model
     dt : float
-        Integration step (s).
+        Integration step (s): the smallest taken.
     equilibrium_residual : float
         Largest static imbalance of the starting pose (N or N m).
     """
@@ -217,7 +219,9 @@ def simulate(
     rate_hz : float
         Output rate (Hz); the step divides the output interval.
     dt : float, optional
-        Integration step (s); by default the largest stable RK4 step.
+        A fixed integration step (s), rounded down to divide the output
+        interval. By default the step is RK4's stability limit at the start
+        (``start_time_step``), cut as the rig stiffens (``integrate_tracked``).
     dissipation : bool
         False: visco-elastic relaxation off (energy-conserving model).
     initial_state : ndarray, optional
@@ -251,19 +255,26 @@ def simulate(
     else:
         y0, residual = np.array(initial_state, float), float("nan")
     out_dt = 1.0 / rate_hz
-    step = stable_time_step(model, state=y0) if dt is None else float(dt)
-    per_record = max(1, int(np.ceil(out_dt / step - 1e-9)))
-    step = out_dt / per_record
     n_records = int(round(duration * rate_hz))
     m = model.kernel_tuple()
     work = _kernel.make_work(m)
-    records, status, bad_step, bad_index = _kernel.integrate(
-        y0, t0, step, n_records * per_record, per_record, m, work, max_speed
-    )
+    if dt is None:
+        dt0, lam0 = start_time_step(model, y0, t0)
+        records, substeps, status, bad_time, bad_index = integrate_tracked(
+            y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed
+        )
+        step = out_dt / max(int(substeps.max(initial=1)), 1)  # the smallest step taken
+    else:
+        per_record = max(1, int(np.ceil(out_dt / float(dt) - 1e-9)))
+        step = out_dt / per_record
+        records, status, bad_step, bad_index = _kernel.integrate(
+            y0, t0, step, n_records * per_record, per_record, m, work, max_speed
+        )
+        bad_time = t0 + bad_step * step
     if status != _kernel.STATUS_OK:
         what = "a non-finite value" if status == _kernel.STATUS_NONFINITE else f"a speed above {max_speed:g} m/s"
         raise SimulationError(
-            f"simulation blew up at t = {t0 + bad_step * step:.4f} s: {what} in {model.describe_state_index(bad_index)}"
+            f"simulation blew up at t = {bad_time:.4f} s: {what} in {model.describe_state_index(bad_index)}"
         )
     time = t0 + np.arange(records.shape[0]) * out_dt
     return SimulationResult(time=time, states=records, model=model, dt=step, equilibrium_residual=residual)

@@ -21,6 +21,7 @@ import numpy as np
 from . import _kernel
 from ._kernel import KIND_PARTICLE
 from ._model import KERNEL_FIELDS, rough_body_positions
+from ._time_step import stable_time_step
 
 __all__ = ["Equilibrium", "StaticsError", "solve_statics"]
 
@@ -296,84 +297,3 @@ def _residual_scale(model):
         s = a["ring_seg"][r]
         scale.append(a["seg_rho"][s] * L[s] / 3.0 + a["ring_added_mass"][r])
     return np.array(scale)
-
-
-def stable_time_step(model, safety=0.75, state=None):
-    """Largest RK4 step (s) that keeps every axial mode stable.
-
-    A Gershgorin bound on the highest eigenvalue of M^-1 K, row by row:
-    particles and body translation (2 sum k / m) and body rotation about each
-    body axis i (2 sum k (|r|^2 - r_i^2) / I_ii), with the instantaneous
-    stiffness Ks + Kv at the shortest element lengths the maneuver reaches
-    (ring sides at three quarters of their share in ``state``, or of an even
-    share without one), against RK4's stability
-    limit of 2 sqrt(2) on the imaginary axis. The bound leaves out the
-    transverse (tension) stiffness and ring sides shrinking below their
-    share, so the default safety factor is measured, not assumed: at the
-    high level, 0.9 of the bound let an asymmetric mode grow slowly over the
-    10 s dig, 0.8 did not; 0.75 keeps a margin.
-    """
-    a = model.arrays
-    Lmin = model.segment_lengths(a["reel_t"]).min(axis=1)
-    rest = _shortest_rest_lengths(model, Lmin, state)
-    k_el = np.empty(model.n_elements)
-    for e in range(model.n_elements):
-        s = a["el_seg"][e]
-        k_el[e] = (a["seg_ks"][s] + a["seg_kv"][s]) / rest[e]
-    k_part = np.zeros(model.n_particles)
-    k_body = np.zeros(model.n_bodies)
-    k_rot = np.zeros((model.n_bodies, 3))
-    for e in range(model.n_elements):
-        for kind, idx, r in ((a["el_ka"][e], a["el_ia"][e], a["el_ra"][e]), (a["el_kb"][e], a["el_ib"][e], a["el_rb"][e])):
-            if kind == KIND_PARTICLE:
-                k_part[idx] += k_el[e]
-            elif kind == _kernel.KIND_BODY:
-                k_body[idx] += k_el[e]
-                k_rot[idx] += k_el[e] * (r @ r - r**2)
-    seg = a["part_seg"]
-    m_part = a["seg_rho"][seg] * Lmin[seg] / a["seg_npart"][seg]
-    I_axes = np.array([np.diag(I) for I in a["body_I"]]).reshape(-1, 3)
-    lam = max(
-        np.max(2.0 * k_part / m_part, initial=0.0),
-        np.max(2.0 * k_body / a["body_mass"], initial=0.0),
-        np.max(2.0 * k_rot / I_axes, initial=0.0),
-        _ring_slide_eigenvalue(model, rest, Lmin),
-    )
-    if lam == 0.0:  # nothing stiff: a step that still resolves 1 kHz
-        return 1e-3
-    # the dissipative mechanisms are stepped implicitly (_kernel.dissipate): no limit from them
-    return safety * 2.0 * np.sqrt(2.0) / np.sqrt(lam)
-
-
-def _ring_slide_eigenvalue(model, rest, Lmin):
-    """Gershgorin bound of a ring's slide mode: stiffness sum of K / L_side over m_s."""
-    a = model.arrays
-    lam = 0.0
-    for r, s in enumerate(a["ring_seg"]):
-        K = a["seg_ks"][s] + a["seg_kv"][s]
-        sides = a["el_side"][model.seg_elements[model.seg_names[s]]]
-        el = np.arange(model.seg_elements[model.seg_names[s]].start, model.seg_elements[model.seg_names[s]].stop)
-        k = sum(K / (rest[el[sides == side]].sum()) for side in (1, 2))
-        m_s = a["seg_rho"][s] * Lmin[s] / 3.0 + a["ring_added_mass"][r]
-        lam = max(lam, 2.0 * k / m_s)
-    return lam
-
-
-def _shortest_rest_lengths(model, Lmin, state):
-    """Each element's rest length at the maneuver's shortest, ring sides at 3/4 of their share."""
-    a = model.arrays
-    rest = np.empty(model.n_elements)
-    for e in range(model.n_elements):
-        s = a["el_seg"][e]
-        side = a["el_side"][e]
-        if side == 0:
-            rest[e] = Lmin[s] / a["seg_nel"][s]
-            continue
-        nA = a["seg_nelA"][s]
-        if state is None:
-            rest[e] = 0.75 * Lmin[s] / a["seg_nel"][s]
-        else:
-            uA = state[model.o_ring + 2 * a["seg_ring"][s]]
-            share = uA / nA if side == 1 else (Lmin[s] - uA) / (a["seg_nel"][s] - nA)
-            rest[e] = 0.75 * min(share, Lmin[s] / a["seg_nel"][s])
-    return rest

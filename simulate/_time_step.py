@@ -1,0 +1,162 @@
+"""The integration step: the largest fixed RK4 step that keeps every mode stable.
+
+The ropes' axial modes are the fastest motion in the model (kHz for the
+baseline's short elements) and set the explicit step; accuracy needs far
+less (DESIGN 4: the baseline's error at this step is micrometres). Two
+estimates of the fastest mode:
+
+- a Gershgorin bound on M^-1 K with the stiffest elements the maneuver
+  reaches: cheap, needs no state, and safe by construction, but it
+  over-estimates the eigenvalue where particles meet rigid bodies and
+  rings, and the ring slide mode;
+- the spectrum of the right-hand side's Jacobian at the starting state
+  (every mode: axial, transverse under tension, body rotation, ring slide,
+  Maxwell relaxation), against RK4's exact stability region: exact there,
+  and carried through the run by ``_tracked.integrate_tracked``, which cuts
+  the step as the Gershgorin bound grows (stiffness goes as 1 / element
+  length, and the bound follows that exactly).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from . import _kernel
+from ._tracked import gershgorin_lambda, state_gershgorin_lambda
+
+__all__ = ["stable_time_step", "start_time_step", "rk4_step_limit", "rhs_jacobian"]
+
+# RK4's stability interval on the imaginary axis: |R(iy)| <= 1 for |y| <= 2 sqrt(2).
+RK4_IMAGINARY_LIMIT = 2.0 * np.sqrt(2.0)
+# Safety factors, measured (see the functions' notes), not assumed.
+GERSHGORIN_SAFETY = 0.75
+SPECTRAL_SAFETY = 0.85
+
+
+def stable_time_step(model, safety=GERSHGORIN_SAFETY, state=None):
+    """A fixed RK4 step (s) for the whole maneuver, from the Gershgorin bound.
+
+    The bound is taken at the stiffest the maneuver makes the rig before it
+    runs: every segment at its shortest, ring sides at three quarters of
+    their share (``state``, when given, sets the shares; an even split
+    without). Needs no equilibrium: the statics' relaxation steps with it.
+
+    Notes
+    -----
+    The bound leaves out the transverse (tension) stiffness and ring sides
+    shrinking below three quarters of their share, so the safety factor was
+    measured: at the high level, 0.9 of the bound let an asymmetric mode
+    grow slowly over the 10 s dig, 0.8 did not; 0.75 keeps a margin.
+    ``simulate`` uses ``start_time_step`` and a tracked step instead.
+    """
+    Lmin = model.segment_lengths(model.arrays["reel_t"]).min(axis=1)
+    worst = gershgorin_lambda(_shortest_rest_lengths(model, Lmin, state), Lmin, model.kernel_tuple())
+    if worst == 0.0:  # nothing stiff: a step that still resolves 1 kHz
+        return 1e-3
+    return safety * RK4_IMAGINARY_LIMIT / np.sqrt(worst)
+
+
+def start_time_step(model, state, t=None, safety=None):
+    """The RK4 step (s) at ``state`` from the spectrum, and the Gershgorin bound there.
+
+    Parameters
+    ----------
+    model : Model
+    state : ndarray
+        Where the run starts (the statics' rest pose, or any state).
+    t : float, optional
+        Its time (s); the maneuver's start by default.
+    safety : float, optional
+        Fraction of RK4's stability limit for the Jacobian's eigenvalues;
+        ``SPECTRAL_SAFETY`` by default.
+
+    Returns
+    -------
+    dt : float
+        Step (s).
+    lam : float
+        Gershgorin bound (rad^2/s^2) at ``state``: ``integrate_tracked``
+        cuts the step by sqrt(lam / bound now) once the rig is stiffer.
+
+    Notes
+    -----
+    The default safety was measured with the 10 s dig and the tracked step
+    (``integrate_tracked``) at fractions f of the limit: at the low and
+    baseline levels f = 1.0 ran with the accuracy of smaller steps, f = 1.1
+    blew up (low) or let a mode grow (baseline: 0.3 mm off), f = 1.25 blew
+    up within a second at both; 0.85 keeps a 15 % margin
+    (``tests/test_time_step.py`` holds the low level to this).
+    """
+    t = float(model.arrays["reel_t"][0]) if t is None else float(t)
+    m = model.kernel_tuple()
+    lam = state_gershgorin_lambda(t, np.asarray(state, float), m, _kernel.make_work(m))
+    # One BLAS thread: many-threaded LAPACK on a busy 2-core machine (the
+    # diagnosis simulates in parallel processes) took 20x longer here.
+    with threadpool_limits(1):
+        limit = rk4_step_limit(np.linalg.eigvals(rhs_jacobian(model, state, t)))
+    return (SPECTRAL_SAFETY if safety is None else safety) * limit, lam
+
+
+def rk4_step_limit(eigenvalues):
+    """Largest h with |R(h lambda)| <= 1 for every eigenvalue (R: RK4's stability polynomial).
+
+    Eigenvalues far below the largest (slow modes, the rigid swing whose
+    tiny positive real parts are rounding) are integrated accurately at any
+    step the fast ones allow and are left out.
+    """
+    lam = np.asarray(eigenvalues, complex)
+    big = np.abs(lam).max(initial=0.0)
+    if big == 0.0:
+        return np.inf
+    lam = lam[np.abs(lam) > 1e-2 * big]
+
+    def stable(h):
+        z = h * lam
+        return np.all(np.abs(1 + z * (1 + z / 2 * (1 + z / 3 * (1 + z / 4)))) <= 1 + 1e-9)
+
+    lo, hi = 0.0, 3.0 / big  # RK4 is unstable beyond |z| = 2.79 on every ray
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return lo
+
+
+def rhs_jacobian(model, state, t):
+    """d(dy/dt)/dy at ``state`` by central differences, (n_state, n_state)."""
+    m = model.kernel_tuple()
+    work = _kernel.make_work(m)
+    y = np.array(state, float)
+    n = y.size
+    jac = np.empty((n, n))
+    fp, fm = np.zeros(n), np.zeros(n)
+    for j in range(n):
+        h = 1e-7 * max(1.0, abs(y[j]))
+        keep = y[j]
+        y[j] = keep + h
+        _kernel.rhs(t, y, fp, m, work)
+        y[j] = keep - h
+        _kernel.rhs(t, y, fm, m, work)
+        y[j] = keep
+        jac[:, j] = (fp - fm) / (2.0 * h)
+    return jac
+
+
+def _shortest_rest_lengths(model, Lmin, state):
+    """Each element's rest length at the maneuver's shortest, ring sides at 3/4 of their share."""
+    a = model.arrays
+    rest = np.empty(model.n_elements)
+    for e in range(model.n_elements):
+        s = a["el_seg"][e]
+        side = a["el_side"][e]
+        if side == 0:
+            rest[e] = Lmin[s] / a["seg_nel"][s]
+            continue
+        nA = a["seg_nelA"][s]
+        if state is None:
+            rest[e] = 0.75 * Lmin[s] / a["seg_nel"][s]
+        else:
+            uA = state[model.o_ring + 2 * a["seg_ring"][s]]
+            share = uA / nA if side == 1 else (Lmin[s] - uA) / (a["seg_nel"][s] - nA)
+            rest[e] = 0.75 * min(share, Lmin[s] / a["seg_nel"][s])
+    return rest

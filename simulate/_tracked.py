@@ -1,0 +1,161 @@
+"""RK4 whose step follows the rig's stiffness, record by record.
+
+Rope sliding through a ring pulley shortens the elements on one side (in
+the dig, the dump rope's short side falls to a fifth of an even share, the
+hoist rope's to a quarter), and an element's axial frequency grows as
+1 / sqrt(length). A fixed step must either assume the worst before the run
+or risk it. Here the step starts from the spectral limit at the start
+(``_time_step``) and, at every record, is cut by the growth of a Gershgorin
+bound on the stiffness since the start: cheap (one pass over the elements
+every 5 ms of motion) and exact in how stiffness scales with length.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ._kernel import (
+    KIND_BODY,
+    KIND_PARTICLE,
+    STATUS_OK,
+    _element_rest,
+    _segment_lengths,
+    first_bad,
+    rk4_step,
+)
+
+__all__ = ["gershgorin_lambda", "state_gershgorin_lambda", "integrate_tracked"]
+
+
+@njit(cache=True)
+def gershgorin_lambda(rest, L, m):
+    """Gershgorin bound on the largest eigenvalue of M^-1 K (rad^2/s^2).
+
+    Row by row: particles and body translation (2 sum k / m), body rotation
+    about each body axis i (2 sum k (|r|^2 - r_i^2) / I_ii) and each ring's
+    slide (2 (K / side_A + K / side_B) / m_slide), with the instantaneous
+    stiffness (Ks + Kv) / rest of every element.
+
+    Parameters
+    ----------
+    rest : ndarray (E,)
+        Element rest lengths (m).
+    L : ndarray (S,)
+        Segment lengths (m): they set the particle masses.
+    m : tuple
+        The model's kernel tuple.
+    """
+    nb, body_mass, body_I = m[0], m[1], m[2]
+    part_seg, el_seg, el_side = m[5], m[6], m[7]
+    el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m[8], m[9], m[10], m[11], m[12], m[13]
+    seg_ks, seg_kv, seg_ring, seg_npart, seg_rho = m[14], m[15], m[20], m[23], m[24]
+    ring_seg, ring_added_mass = m[25], m[26]
+    P = part_seg.shape[0]
+    R = ring_seg.shape[0]
+    k_part = np.zeros(P)
+    k_body = np.zeros(nb)
+    k_rot = np.zeros((nb, 3))
+    side_len = np.zeros((R, 2))
+    for e in range(el_seg.shape[0]):
+        s = el_seg[e]
+        k = (seg_ks[s] + seg_kv[s]) / rest[e]
+        if el_side[e] > 0:
+            side_len[seg_ring[s], el_side[e] - 1] += rest[e]
+        for end in range(2):
+            kind = el_ka[e] if end == 0 else el_kb[e]
+            idx = el_ia[e] if end == 0 else el_ib[e]
+            if kind == KIND_PARTICLE:
+                k_part[idx] += k
+            elif kind == KIND_BODY:
+                k_body[idx] += k
+                r0 = el_ra[e, 0] if end == 0 else el_rb[e, 0]
+                r1 = el_ra[e, 1] if end == 0 else el_rb[e, 1]
+                r2 = el_ra[e, 2] if end == 0 else el_rb[e, 2]
+                k_rot[idx, 0] += k * (r1 * r1 + r2 * r2)
+                k_rot[idx, 1] += k * (r0 * r0 + r2 * r2)
+                k_rot[idx, 2] += k * (r0 * r0 + r1 * r1)
+    lam = 0.0
+    for p in range(P):
+        s = part_seg[p]
+        lam = max(lam, 2.0 * k_part[p] / (seg_rho[s] * L[s] / seg_npart[s]))
+    for b in range(nb):
+        lam = max(lam, 2.0 * k_body[b] / body_mass[b])
+        for i in range(3):
+            lam = max(lam, 2.0 * k_rot[b, i] / body_I[b, i, i])
+    for r in range(R):
+        s = ring_seg[r]
+        K = seg_ks[s] + seg_kv[s]
+        m_slide = seg_rho[s] * L[s] / 3.0 + ring_added_mass[r]
+        lam = max(lam, 2.0 * (K / side_len[r, 0] + K / side_len[r, 1]) / m_slide)
+    return lam
+
+
+@njit(cache=True)
+def state_gershgorin_lambda(t, y, m, work):
+    """``gershgorin_lambda`` of the rig as it is at (t, y)."""
+    el_seg, el_side = m[6], m[7]
+    seg_len0, seg_reel, seg_reel_off = m[17], m[18], m[19]
+    seg_ring, seg_nel, seg_nelA = m[20], m[21], m[22]
+    reel_t, reel_len = m[27], m[28]
+    Lseg, dLseg, reel_buf, reel_rate = work[1], work[2], work[3], work[4]
+    _segment_lengths(t, seg_len0, seg_reel, seg_reel_off, reel_t, reel_len, Lseg, dLseg, reel_buf, reel_rate)
+    nb = m[0]
+    P = m[5].shape[0]
+    E = el_seg.shape[0]
+    o_ring = 12 * nb + 6 * P + E
+    rest = np.empty(E)
+    for e in range(E):
+        rest[e], _ = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
+    return gershgorin_lambda(rest, Lseg.copy(), m)
+
+
+@njit(cache=True)
+def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed):
+    """RK4 from ``t0``, one record every ``out_dt``, the step cut as the rig stiffens.
+
+    In each record interval the step is ``dt0 * sqrt(lam0 / lam)`` when the
+    Gershgorin bound ``lam`` at the interval's start exceeds ``lam0`` (the
+    bound where ``dt0`` was found), else ``dt0``; rounded down to divide
+    ``out_dt``.
+
+    Returns
+    -------
+    records : ndarray (n_records + 1, n_state)
+    substeps : ndarray (n_records,) of int
+        RK4 steps taken in each record interval.
+    status : int
+        STATUS_OK, STATUS_NONFINITE or STATUS_RUNAWAY.
+    bad_time : float
+        Time (s) of the record at which the run stopped, else NaN.
+    bad_index : int
+        State index found bad first, else -1.
+    """
+    n = y0.shape[0]
+    records = np.empty((n_records + 1, n))
+    substeps = np.zeros(n_records, dtype=np.int64)
+    y = y0.copy()
+    k1 = np.empty(n)
+    k2 = np.empty(n)
+    k3 = np.empty(n)
+    k4 = np.empty(n)
+    tmp = np.empty(n)
+    records[0] = y
+    nb = m[0]
+    P = m[5].shape[0]
+    for rec in range(n_records):
+        t_rec = t0 + rec * out_dt
+        lam = state_gershgorin_lambda(t_rec, y, m, work)
+        dt = dt0 * math.sqrt(lam0 / lam) if lam > lam0 else dt0
+        sub = max(1, int(math.ceil(out_dt / dt - 1e-9)))
+        substeps[rec] = sub
+        h = out_dt / sub
+        for j in range(sub):
+            rk4_step(t_rec + j * h, h, y, k1, k2, k3, k4, tmp, m, work)
+        status, index = first_bad(y, nb, P, max_speed)
+        if status != STATUS_OK:
+            return records[: rec + 1], substeps[: rec + 1], status, t_rec + out_dt, index
+        records[rec + 1] = y
+    return records, substeps, STATUS_OK, np.nan, -1

@@ -1,0 +1,74 @@
+"""The integration step: RK4's stability limit, found from the spectrum and tracked through a run."""
+
+import numpy as np
+import pytest
+
+from dragline.simulate import Maneuver, assemble, dig_maneuver, load_rig, rig_from_dict, solve_statics
+from dragline.simulate import _kernel
+from dragline.simulate._time_step import rk4_step_limit, stable_time_step, start_time_step
+from dragline.simulate._tracked import integrate_tracked
+
+RK4_REAL_LIMIT = 2.785293563  # |R(z)| = 1 on the negative real axis (z = -2.7853)
+
+
+def test_rk4_limit_on_the_imaginary_and_real_axes():
+    assert rk4_step_limit([1000j, -1000j]) == pytest.approx(2 * np.sqrt(2) / 1000, rel=1e-6)
+    assert rk4_step_limit([-500.0]) == pytest.approx(RK4_REAL_LIMIT / 500, rel=1e-6)
+    # the most restrictive eigenvalue decides; slow modes are left out
+    assert rk4_step_limit([1000j, -1000j, -500.0, 1e-9 + 1j]) == pytest.approx(2 * np.sqrt(2) / 1000, rel=1e-6)
+
+
+def test_spectral_step_of_a_taut_string_is_its_highest_axial_mode():
+    # n particles on a string pulled taut between two fixed points: the
+    # highest axial mode of the fixed-fixed chain is 2 sqrt(k/m) sin(n pi / 2(n+1)).
+    n, length, span = 6, 0.99, 1.0
+    rig = rig_from_dict({
+        "fixed_points": {"a": [0.0, 0.0, -2.0], "b": [span, 0.0, -2.0]},
+        "ropes": {"string": {"start": "fixed.a", "end": "fixed.b", "length": length, "particles": n,
+                             "weight_per_length": 1e-3, "static_stiffness": 1e4, "viscous_stiffness": 1.0,
+                             "viscous_damping": 1.0}},
+    })
+    model = assemble(rig, Maneuver([0.0], [1.0], [1.0]), dissipation=False)
+    state = solve_statics(model).state
+    a = model.arrays
+    k = (a["seg_ks"][0] + a["seg_kv"][0]) / (length / (n + 1))
+    m = a["seg_rho"][0] * length / n
+    omega = 2 * np.sqrt(k / m) * np.sin(n * np.pi / (2 * (n + 1)))
+    dt, _ = start_time_step(model, state, safety=1.0)
+    assert dt == pytest.approx(2 * np.sqrt(2) / omega, rel=2e-3)
+
+
+@pytest.fixture(scope="module")
+def low_dig():
+    model = assemble(load_rig(), dig_maneuver(), "low")
+    state = solve_statics(model).state
+    m = model.kernel_tuple()
+    # reference: a fixed step a quarter of the Gershgorin bound's
+    per = int(np.ceil(5e-3 / (0.25 * stable_time_step(model, state=state))))
+    ref, status, _, _ = _kernel.integrate(state, 0.0, 5e-3 / per, 2000 * per, per, m, _kernel.make_work(m), 100.0)
+    assert status == _kernel.STATUS_OK
+    return model, state, ref
+
+
+def _tracked(model, state, safety, track=True):
+    dt0, lam0 = start_time_step(model, state, safety=safety)
+    m = model.kernel_tuple()
+    # lam0 = inf never cuts the step: a fixed step at the start's limit
+    return integrate_tracked(state, 0.0, 5e-3, 2000, dt0, lam0 if track else np.inf, m, _kernel.make_work(m), 100.0)
+
+
+def test_the_tracked_step_is_accurate_and_its_limit_is_real(low_dig):
+    model, state, ref = low_dig
+    rec, substeps, status, _, _ = _tracked(model, state, safety=None)
+    assert status == _kernel.STATUS_OK
+    assert 1e3 * np.max(np.linalg.norm(rec[:, :3] - ref[:, :3], axis=1)) < 0.05  # mm, bucket
+    assert substeps.max() > substeps[0]  # the ring sides shorten during the dig: the step was cut
+    # a quarter past the limit, the fastest mode grows and the run blows up
+    assert _tracked(model, state, safety=1.25)[2] != _kernel.STATUS_OK
+
+
+def test_without_tracking_the_start_step_blows_up_as_a_ring_side_shortens(low_dig):
+    model, state, _ = low_dig
+    rec, _, status, bad_time, bad_index = _tracked(model, state, safety=None, track=False)
+    assert status != _kernel.STATUS_OK and bad_time > 1.0
+    assert "dump_rope" in model.describe_state_index(bad_index)
