@@ -23,7 +23,7 @@ def add_parser(sub):
     add_model_options(p)
     p.add_argument("--duration", type=float, default=10.0, metavar="S", help="simulated time (s, default 10)")
     p.add_argument("--rate", type=float, default=200.0, metavar="HZ", help="output rate (Hz, default 200)")
-    p.add_argument("--dt", type=float, default=None, metavar="S", help="integration step (s; default: largest stable)")
+    p.add_argument("--dt", type=float, default=None, metavar="S", help="fixed integration step (s; default: RK4's stability limit, cut as the rig stiffens)")
     p.add_argument("--out", required=True, metavar="TRAJ.csv", help="trajectory table to write")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
 
@@ -41,7 +41,7 @@ def run(args):
     write_trajectory_csv(args.out, result.table)
     if not args.quiet:
         print(
-            f"simulated {args.duration:g} s ({result.model.n_state} states, step {result.dt * 1e6:.1f} us) "
+            f"simulated {args.duration:g} s ({result.model.n_state} states, smallest step {result.dt * 1e6:.1f} us) "
             f"in {time.perf_counter() - t0:.1f} s; wrote {args.out}",
             file=sys.stderr,
         )
