@@ -43,7 +43,7 @@ import numpy as np
 
 from ..simulate import MECHANISMS, parse_physics, simulate
 
-__all__ = ["MAGNITUDES", "default_cases", "bench_discovery", "summary_lines", "bench_command"]
+__all__ = ["MAGNITUDES", "LIMIT_CASES", "default_cases", "bench_discovery", "summary_lines", "bench_command"]
 
 MAGNITUDES = {
     "aero_drag": (0.15, 0.5, 1.6, 5.5),
@@ -53,6 +53,16 @@ MAGNITUDES = {
     "rope_bending_damping": (2.5e-3, 7e-3, 0.02, 0.06),
 }
 NONE_FRACTION = 0.22
+# Where detection fades (``--limits``): below the default list's weakest,
+# around the null test's threshold (score 1), with a no-physics control.
+LIMIT_CASES = (
+    ("pulley_inertia", 5e-6, 5001),
+    ("pulley_inertia", 7.5e-6, 5002),
+    ("rope_bending_damping", 6e-4, 5003),
+    ("rope_bending_damping", 1.2e-3, 5004),
+    ("aero_drag", 0.11, 5005),
+    (None, 0.0, 5006),
+)
 
 
 def default_cases(quick=False, seed=0):
@@ -268,12 +278,13 @@ def _fmt(x):
 def bench_command(args):
     """``dragline bench discovery``: returns (report, summary lines) like the other benches.
 
-    Reads ``args.seed`` and, when the bench command has them, ``args.quick``
-    and ``args.workers``.
+    Reads ``args.seed`` and, when the bench command has them, ``args.quick``,
+    ``args.limits`` (the ``LIMIT_CASES`` instead) and ``args.workers``.
     """
     import sys
 
-    report = bench_discovery(workers=getattr(args, "workers", 2) or 2, seed=args.seed,
+    report = bench_discovery(cases=LIMIT_CASES if getattr(args, "limits", False) else None,
+                             workers=getattr(args, "workers", 2) or 2, seed=args.seed,
                              quick=bool(getattr(args, "quick", False)),
                              progress=lambda line: print(line, file=sys.stderr))
     return report, summary_lines(report)

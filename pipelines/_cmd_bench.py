@@ -15,6 +15,7 @@ def add_parser(sub):
     p.add_argument("--repeats", type=int, default=5, help="timed runs per figure (median reported)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--quick", action="store_true", help="discovery: the reduced case list")
+    p.add_argument("--limits", action="store_true", help="discovery: cases at the detection limit")
     p.add_argument("--workers", type=int, default=2, help="discovery: parallel processes")
 
 

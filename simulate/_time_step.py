@@ -82,10 +82,10 @@ def start_time_step(model, state, t=None, safety=None):
     Notes
     -----
     The default safety was measured with the 10 s dig and the tracked step
-    (``integrate_tracked``) at fractions f of the limit: at the low and
-    baseline levels f = 1.0 ran with the accuracy of smaller steps, f = 1.1
-    blew up (low) or let a mode grow (baseline: 0.3 mm off), f = 1.25 blew
-    up within a second at both; 0.85 keeps a 15 % margin
+    (``integrate_tracked``) at fractions f of the limit: at every level
+    (low to high) f = 1.0 ran with the accuracy of smaller steps, f = 1.1
+    blew up (low) or let a mode grow (0.2-1.4 mm off), f = 1.25 blew up
+    within a second; 0.85 keeps a 15 % margin
     (``tests/test_time_step.py`` holds the low level to this).
     """
     t = float(model.arrays["reel_t"][0]) if t is None else float(t)
