@@ -148,7 +148,7 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed):
     for rec in range(n_records):
         t_rec = t0 + rec * out_dt
         lam = state_gershgorin_lambda(t_rec, y, m, work)
-        dt = dt0 * math.sqrt(lam0 / lam) if lam > lam0 else dt0
+        dt = dt0 * math.sqrt(lam0 / lam) if lam > lam0 > 0.0 else dt0
         sub = max(1, int(math.ceil(out_dt / dt - 1e-9)))
         substeps[rec] = sub
         h = out_dt / sub

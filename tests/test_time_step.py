@@ -2,10 +2,20 @@
 
 import numpy as np
 import pytest
-
-from dragline.simulate import Maneuver, assemble, dig_maneuver, load_rig, rig_from_dict, solve_statics
-from dragline.simulate import _kernel
-from dragline.simulate._time_step import rk4_step_limit, stable_time_step, start_time_step
+from dragline.simulate import (
+    Maneuver,
+    _kernel,
+    assemble,
+    dig_maneuver,
+    load_rig,
+    rig_from_dict,
+    solve_statics,
+)
+from dragline.simulate._time_step import (
+    rk4_step_limit,
+    stable_time_step,
+    start_time_step,
+)
 from dragline.simulate._tracked import integrate_tracked
 
 RK4_REAL_LIMIT = 2.785293563  # |R(z)| = 1 on the negative real axis (z = -2.7853)
@@ -69,6 +79,6 @@ def test_the_tracked_step_is_accurate_and_its_limit_is_real(low_dig):
 
 def test_without_tracking_the_start_step_blows_up_as_a_ring_side_shortens(low_dig):
     model, state, _ = low_dig
-    rec, _, status, bad_time, bad_index = _tracked(model, state, safety=None, track=False)
+    _, _, status, bad_time, bad_index = _tracked(model, state, safety=None, track=False)
     assert status != _kernel.STATUS_OK and bad_time > 1.0
     assert "dump_rope" in model.describe_state_index(bad_index)
