@@ -82,6 +82,7 @@ from ._locate import (
     time_windows,
 )
 from ._metrics import channel_metrics
+from ._second_round import second_round
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json", "write_diagnosis_report"]
 
@@ -504,7 +505,9 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         noise, 1 = noise), ``improvement`` (held-out chi2 drop),
         ``threshold``, ``score`` (improvement / threshold), ``significant``,
         ``signature_match``, ``explained_fraction``, ``rms_channels`` (SI,
-        all data, before/after); ``skipped`` (candidates the simulator
+        all data, before/after); ``second_mechanism`` (when a mechanism is
+        named: every other candidate fitted on top of it, ``_second_round``;
+        else None); ``skipped`` (candidates the simulator
         cannot run); ``free_decay`` (measured, nominal and fitted frequency,
         damping, envelope per channel); ``metrics`` (RMS and peak error,
         Sprague-Geers C, ISO/TS 18571 rating over the free decay, nominal
@@ -664,6 +667,18 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
             "the model, so no dynamic mechanism can be trusted")
     verdict, reason = decide(hypotheses, threshold, structured_before, structured_after,
                              offsets_ok=not too_far, offsets_note=offsets_note)
+    second = None
+    if verdict in scored:
+        note(f"fitting the other candidates on top of {verdict}")
+        named = next(h for h in hypotheses if h["name"] == verdict)
+        second = second_round(problem, ctx, runnable, named, scored[verdict]["sim"], workers=workers, seed=seed,
+                              progress=note)
+        also = [h for h in second["candidates"] if h["significant"]]
+        if also:
+            h = also[0]
+            (k, v), = h["parameters"].items()
+            reason += (f"; on top of it, {h['name']} ({k}={v:.3g}) also improves held-out data, {h['score']:.1f} "
+                       "times what noise alone gives: a second mechanism may be at work")
     shown = verdict if verdict in fitted_series else after_name
     decay = _free_decay_section(time, channels, M, M - r0, fitted_series.get(shown), shown, t_stop)
     metrics = _before_after_metrics(time, channels, M, M - r0, fitted_series.get(shown), shown, t_stop)
@@ -675,6 +690,7 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         "mismatch": structured_before[:MAX_MISMATCH_ENTRIES],
         "mismatch_after": {"model": after_name or "nominal", "entries": structured_after[:MAX_MISMATCH_ENTRIES]},
         "hypotheses": hypotheses,
+        "second_mechanism": second,
         "skipped": skipped,
         "free_decay": decay,
         "metrics": metrics,
@@ -692,7 +708,8 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
                      "candidates": [c["name"] for c in cands], "decay_weight": DECAY_WEIGHT,
                      "block_s": BLOCK_S, "lowpass_s": LOWPASS_S, "rate_hz": rate},
         "timing": {"seconds": _time.perf_counter() - started,
-                   "simulations": 1 + sum(h["n_simulations"] for h in hypotheses)},
+                   "simulations": 1 + sum(h["n_simulations"] for h in hypotheses)
+                   + (second["n_simulations"] if second else 0)},
     }
     nominal_shown = M - r0
     fitted = {name: fitted_series[name] for name in fitted_series}

@@ -113,6 +113,8 @@ def _run_case(name, value, seed, workdir):
         shutil.rmtree(folder, ignore_errors=True)
     out.update(verdict=doc["verdict"], reason=doc["reason"], diagnosis_seconds=time.perf_counter() - t0,
                load_seconds=doc["timing"].get("load_seconds"), simulations=doc["timing"]["simulations"])
+    second = doc.get("second_mechanism") or {}
+    out["also"] = [h["name"] for h in second.get("candidates", []) if h["significant"]]
     hyp = {h["name"]: h for h in doc["hypotheses"]}
     if name is not None and name in hyp:
         h = hyp[name]
@@ -226,6 +228,7 @@ def _summarise(results, wall, workers):
                 and r.get("relative_error") is not None and smallest.get(r["truth"]) is not None
                 and r["value"] >= smallest[r["truth"]]]
     secs = [r["diagnosis_seconds"] for r in results]
+    named = [r for r in results if r["verdict"] in MECHANISMS]
     return {
         "n_cases": len(results),
         "cases": results,
@@ -234,6 +237,10 @@ def _summarise(results, wall, workers):
         "false_positive_rate": len(named_wrong) / len(none_cases) if none_cases else None,
         "none_correct_rate": (float(np.mean([r["verdict"] == "none" for r in none_cases])) if none_cases else None),
         "parameter_error": errors,
+        # Every case holds one mechanism at most: a second one reported
+        # beside a verdict is a false alarm.
+        "second_mechanism_false_rate": (float(np.mean([bool(r.get("also")) for r in named]))
+                                        if named else None),
         # The figure: correctly named cases at or above each
         # mechanism's smallest reliably found magnitude.
         "median_abs_relative_error_reliable": float(np.median(reliable)) if reliable else None,
@@ -261,6 +268,8 @@ def summary_lines(report):
                      f"{_fmt(e['median_abs_relative_error'])} max {_fmt(e['max_abs_relative_error'])}, 68% interval "
                      f"covers truth {_fmt(e['coverage_68'])}; smallest found reliably "
                      f"{_fmt(report['smallest_found'].get(name))}")
+    lines.append(f"second mechanism reported beside a named one (each case holds one at most): "
+                 f"{_fmt(report['second_mechanism_false_rate'])} of named cases")
     lines.append("median |relative error| of correctly named cases at or above the smallest magnitude "
                  f"found reliably: {_fmt(report['median_abs_relative_error_reliable'])}")
     t = report["timing"]

@@ -284,7 +284,9 @@ def simulate_channels(name, main, value, ctx=None):
     ndarray (n, c), or None when the simulation blows up.
     """
     c = _CTX if ctx is None else ctx
-    physics = [] if value == 0.0 or name is None else [parse_physics(f"{name}:{main}={value!r}")]
+    physics = list(c.get("base_physics", ()))  # a mechanism already named (second round)
+    if value != 0.0 and name is not None:
+        physics.append(parse_physics(f"{name}:{main}={value!r}"))
     try:
         res = simulate(c["rig"], c["maneuver"], c["discretization"], physics, duration=c["duration"],
                        rate_hz=c["rate_hz"], initial_state=c["initial_state"])
@@ -340,11 +342,12 @@ def fit_candidates(problem, ctx, candidates, nominal_sim, workers=2, progress=No
     problem : Problem
     ctx : dict
         ``rig``, ``maneuver``, ``discretization``, ``duration``, ``rate_hz``,
-        ``initial_state``, ``time``, ``channels``: what the simulations need.
+        ``initial_state``, ``time``, ``channels``: what the simulations need;
+        optionally ``base_physics``, mechanisms every simulation includes.
     candidates : list of dict
         From :func:`candidate_list`.
     nominal_sim : ndarray (n, c)
-        The nominal model's channels.
+        The nominal model's channels (with ``base_physics``: that model's).
     workers : int
         Processes for the simulations (1: run here).
     progress : callable, optional

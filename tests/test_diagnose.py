@@ -156,6 +156,29 @@ def test_strong_aero_drag_is_named_with_its_coefficient(aero_diagnosis):
     assert doc["mismatch_after"]["entries"] == []
 
 
+def test_one_mechanism_reports_no_second(aero_diagnosis, nominal_diagnosis):
+    second = aero_diagnosis.doc["second_mechanism"]
+    assert second["given"]["name"] == "aero_drag"
+    assert [h["name"] for h in second["candidates"]] == ["pulley_inertia"]
+    assert not any(h["significant"] for h in second["candidates"])
+    assert "second mechanism" not in aero_diagnosis.doc["reason"]
+    assert nominal_diagnosis.doc["second_mechanism"] is None  # nothing named, nothing to build on
+
+
+def test_two_mechanisms_name_one_and_report_the_other(nominal_run):
+    # Drag damps; sheave inertia slows the ring slide without damping: both
+    # at once, each strong on its own.
+    both = [parse_physics(f"aero_drag:cd={CD_TRUE}"), parse_physics("pulley_inertia:inertia=3e-4")]
+    run = simulate(physics=both, initial_state=nominal_run.states[0])
+    doc = diagnose(noisy(run.table, seed=13), candidates=CANDIDATES, workers=2).doc
+    assert doc["verdict"] in CANDIDATES, doc["reason"]
+    other = next(h for h in doc["second_mechanism"]["candidates"])
+    assert other["name"] != doc["verdict"] and other["significant"], doc["second_mechanism"]
+    truth = {"aero_drag": CD_TRUE, "pulley_inertia": 3e-4}[other["name"]]
+    assert abs(next(iter(other["parameters"].values())) / truth - 1) < 0.3
+    assert "second mechanism may be at work" in doc["reason"]
+
+
 def test_hypotheses_are_ranked_best_first(aero_diagnosis, nominal_diagnosis):
     for doc in (aero_diagnosis.doc, nominal_diagnosis.doc):
         gains = [h["improvement"] for h in doc["hypotheses"]]

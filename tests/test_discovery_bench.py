@@ -26,15 +26,15 @@ def test_default_cases_hold_enough_no_physics_cases_with_distinct_seeds():
     assert {name for name, _, _ in cases} - {None} == set(MECHANISMS)
 
 
-def _case(truth, value, verdict, rel=None):
+def _case(truth, value, verdict, rel=None, also=()):
     return {"truth": truth, "value": value, "verdict": verdict, "relative_error": rel,
-            "covered": rel is not None and abs(rel) < 0.1, "diagnosis_seconds": 60.0}
+            "covered": rel is not None and abs(rel) < 0.1, "diagnosis_seconds": 60.0, "also": list(also)}
 
 
 def test_summary_counts_verdicts_false_positives_and_the_reliable_threshold():
     results = [
         _case("aero_drag", 0.15, "none"),
-        _case("aero_drag", 0.5, "aero_drag", 0.4),
+        _case("aero_drag", 0.5, "aero_drag", 0.4, also=["pulley_inertia"]),
         _case("aero_drag", 1.6, "aero_drag", -0.1),
         _case("aero_drag", 5.5, "aero_drag", 0.05),
         _case("pulley_inertia", 1e-5, "pulley_inertia", 0.9),  # found, but not at every larger value
@@ -52,3 +52,4 @@ def test_summary_counts_verdicts_false_positives_and_the_reliable_threshold():
     assert report["parameter_error"]["aero_drag"]["median_abs_relative_error"] == pytest.approx(0.1)
     # reliable: aero 0.4, 0.1, 0.05 and inertia 0.02 -> median 0.075
     assert report["median_abs_relative_error_reliable"] == pytest.approx(0.075)
+    assert report["second_mechanism_false_rate"] == pytest.approx(1 / 6)  # 6 verdicts name a mechanism
