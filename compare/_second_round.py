@@ -12,8 +12,8 @@ significant second one is reported beside it.
 
 from __future__ import annotations
 
-from ._hypotheses import fit_candidates, null_threshold, score_candidate
 from ..simulate import parse_physics
+from ._hypotheses import fit_candidates, null_threshold, score_candidate
 
 __all__ = ["second_round"]
 
