@@ -7,16 +7,13 @@ no dates, no pyplot state, so the same diagnosis gives the same bytes.
 from __future__ import annotations
 
 import math
-import os
 
-import matplotlib
 import numpy as np
-from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 
 from ._compare import channel_kind
 from ._locate import LOWPASS_S, low_pass
-from ._report import REPORT_STYLE
+from ._report import text_pages, report_pdf
 
 __all__ = ["write_report_pdf"]
 
@@ -27,38 +24,15 @@ RESID = {"position": (1000.0, "mm"), "angle": (DEG, "deg"), "rope_length": (1000
 OVERLAY_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch", "drag_cluster.x", "spreader_bar.pitch",
                     "hoist_cluster.z", "hoist_rope.length", "drag_rope.length", "hoist_cluster.pitch")
 TEXT_SIZE = 7.0
-LINES_PER_PAGE = 92
 
 
 def _f(x, spec=".3g"):
     return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
 
 
-def _text_pages(pdf, title, lines):
-    for k in range(0, max(1, len(lines)), LINES_PER_PAGE):
-        fig = Figure(figsize=PAGE_SIZE)
-        fig.text(0.06, 0.96, title if k == 0 else f"{title} (continued)", fontsize=12, fontweight="bold", va="top")
-        y = 0.93
-        for line in lines[k : k + LINES_PER_PAGE]:
-            fig.text(0.05, y, line, family="monospace", fontsize=TEXT_SIZE, va="top")
-            y -= 0.0098
-        pdf.savefig(fig)
-
-
-def _wrap(text, width=110, indent="  "):
-    words, lines, line = text.split(), [], ""
-    for w in words:
-        if len(line) + len(w) + 1 > width:
-            lines.append(line)
-            line = indent + w
-        else:
-            line = f"{line} {w}" if line else w
-    return lines + ([line] if line else [])
-
-
 def _summary_lines(doc):
     lines = [f"Verdict: {doc['verdict']}", ""]
-    lines += _wrap("Reason: " + doc["reason"]) + [""]
+    lines += ["Reason: " + doc["reason"], ""]
     src = doc.get("source", {})
     if src:
         lines.append(f"Input: {src.get('input', '-')} ({src.get('kind', '-')}); maneuver: {src.get('maneuver', '-')}")
@@ -71,9 +45,9 @@ def _summary_lines(doc):
         lines.append(f"  {rope}: {1000 * r['residual_rms']:.1f} mm RMS about a {1000 * r['bias']:+.1f} mm bias "
                      "(recording vs nominal simulation)")
     nt = doc["null_test"]
-    lines += [""] + _wrap(f"Null test: held-out improvement threshold {nt['threshold']:.1f} (chi2 units): "
-                          f"{100 * nt['quantile']:.0f}th percentile of {nt['n_surrogates']} noise surrogates "
-                          f"({_f(nt['surrogate_quantile'])}), at least {nt['min_improvement']:g}") + [""]
+    lines += ["", f"Null test: held-out improvement threshold {nt['threshold']:.1f} (chi2 units): "
+                  f"{100 * nt['quantile']:.0f}th percentile of {nt['n_surrogates']} noise surrogates "
+                  f"({_f(nt['surrogate_quantile'])}), at least {nt['min_improvement']:g}", ""]
     lines.append("Hypotheses, best first (held-out RMS in units of the measurement noise; 1 = noise):")
     lines.append(f"{'mechanism':<22}{'parameter':>22}{'+-68%':>20}{'rms before':>11}{'after':>8}"
                  f"{'improve':>11}{'score':>9}  sig  bound")
@@ -239,17 +213,9 @@ def write_report_pdf(path, diag):
     residuals, each candidate's fit profile, the mismatch map before and
     after.
     """
-    path = os.fspath(path)
-    tmp = f"{path}.tmp{os.getpid()}"
-    try:
-        with matplotlib.rc_context(REPORT_STYLE):
-            with PdfPages(tmp, metadata={"CreationDate": None, "ModDate": None,
-                                         "Title": "dragline diagnosis"}) as pdf:
-                _text_pages(pdf, "Dragline diagnosis: what physics does the model leave out?", _summary_lines(diag.doc))
-                _overlay_pages(pdf, diag)
-                _profile_page(pdf, diag.doc)
-                _map_page(pdf, diag)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with report_pdf(path, "dragline diagnosis") as pdf:
+        text_pages(pdf, "Dragline diagnosis: what physics does the model leave out?", _summary_lines(diag.doc),
+                    size=TEXT_SIZE)
+        _overlay_pages(pdf, diag)
+        _profile_page(pdf, diag.doc)
+        _map_page(pdf, diag)

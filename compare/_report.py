@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import os
+from contextlib import contextmanager
 
 import matplotlib
 from matplotlib.backends.backend_pdf import PdfPages
@@ -23,9 +24,14 @@ from matplotlib.figure import Figure
 from ._align import align_tables
 from ._compare import FREE_DECAY_CHANNELS, TOLERANCES, channel_kind
 from ._paper import DIG_PEAKS, FIGURES
-from ._report_figures import ERROR_UNITS, discretization_page, figure_pages, free_decay_page
+from ._report_figures import (
+    ERROR_UNITS,
+    discretization_page,
+    figure_pages,
+    free_decay_page,
+)
 
-__all__ = ["write_report", "REPORT_STYLE"]
+__all__ = ["write_report", "report_pdf", "REPORT_STYLE"]
 
 PAGE_SIZE = (8.27, 11.69)  # A4 portrait, inches
 REPORT_STYLE = {
@@ -44,6 +50,21 @@ REPORT_STYLE = {
 TEXT_WIDTH_IN = 7.3
 TEXT_TOP, TEXT_BOTTOM = 0.91, 0.04
 
+
+
+@contextmanager
+def report_pdf(path, title):
+    """A deterministic PDF (no dates, ``REPORT_STYLE``) written under a temporary name, renamed when complete."""
+    path = os.fspath(path)
+    tmp = f"{path}.tmp{os.getpid()}"
+    try:
+        with matplotlib.rc_context(REPORT_STYLE):
+            with PdfPages(tmp, metadata={"CreationDate": None, "ModDate": None, "Title": title}) as pdf:
+                yield pdf
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
 
 def fmt(value, spec=".3g", none="-"):
     """Format a number for a table; ``none`` for None or NaN."""
@@ -70,7 +91,7 @@ def _wrap(line, width):
     return out
 
 
-def _text_pages(pdf, title, lines, size=7.5):
+def text_pages(pdf, title, lines, size=7.5):
     """Monospace pages of text lines (wrapped), continued over as many pages as needed."""
     width = int(TEXT_WIDTH_IN * 72.0 / (0.6 * size))
     step = 1.4 * size / 72.0 / PAGE_SIZE[1]
@@ -334,20 +355,11 @@ def write_report(path, measured, simulated, metrics, study=None, sources=None):
         if c in measured.columns or c in simulated.columns
     ))
     time, meas, sim = align_tables(measured, simulated, metrics["time_offset"]["applied"], channels=channels)
-    path = os.fspath(path)
-    tmp = f"{path}.tmp{os.getpid()}"
-    try:
-        with matplotlib.rc_context(REPORT_STYLE):
-            with PdfPages(tmp, metadata={"CreationDate": None, "ModDate": None,
-                                         "Title": "dragline comparison report"}) as pdf:
-                _text_pages(pdf, "Dragline validation: measured vs predicted motion", _summary_lines(metrics, sources))
-                _text_pages(pdf, "All channels", _channel_lines(metrics), size=6.5)
-                figure_pages(pdf, time, meas, sim, metrics, PAGE_SIZE)
-                _text_pages(pdf, "Free decay after the reels stop", _decay_lines(metrics), size=6.5)
-                free_decay_page(pdf, time, meas, sim, metrics, PAGE_SIZE)
-                if study is not None:
-                    discretization_page(pdf, time, meas, study, metrics, PAGE_SIZE)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with report_pdf(path, "dragline comparison report") as pdf:
+        text_pages(pdf, "Dragline validation: measured vs predicted motion", _summary_lines(metrics, sources))
+        text_pages(pdf, "All channels", _channel_lines(metrics), size=6.5)
+        figure_pages(pdf, time, meas, sim, metrics, PAGE_SIZE)
+        text_pages(pdf, "Free decay after the reels stop", _decay_lines(metrics), size=6.5)
+        free_decay_page(pdf, time, meas, sim, metrics, PAGE_SIZE)
+        if study is not None:
+            discretization_page(pdf, time, meas, study, metrics, PAGE_SIZE)

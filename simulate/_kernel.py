@@ -616,6 +616,12 @@ def rk4_step(t, h, y, k1, k2, k3, k4, tmp, m, work):
     dissipate(t + h, y, h, m, work)
 
 
+@njit(cache=True)
+def rk4_scratch(n):
+    """The four stage derivatives and the stage state ``rk4_step`` works in."""
+    return np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+
+
 @njit(cache=True, inline="always")
 def first_bad(y, nb, P, max_speed):
     """(status, state index) of the first non-finite value or runaway speed; (STATUS_OK, -1) if none."""
@@ -652,11 +658,7 @@ def integrate(y0, t0, dt, n_steps, record_every, m, work, max_speed):
     n_rec = n_steps // record_every + 1
     records = np.empty((n_rec, n))
     y = y0.copy()
-    k1 = np.empty(n)
-    k2 = np.empty(n)
-    k3 = np.empty(n)
-    k4 = np.empty(n)
-    tmp = np.empty(n)
+    k1, k2, k3, k4, tmp = rk4_scratch(n)
     records[0] = y
     nb = m[0]
     P = m[5].shape[0]

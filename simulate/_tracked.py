@@ -24,6 +24,7 @@ from ._kernel import (
     _element_rest,
     _segment_lengths,
     first_bad,
+    rk4_scratch,
     rk4_step,
 )
 
@@ -137,11 +138,7 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed):
     records = np.empty((n_records + 1, n))
     substeps = np.zeros(n_records, dtype=np.int64)
     y = y0.copy()
-    k1 = np.empty(n)
-    k2 = np.empty(n)
-    k3 = np.empty(n)
-    k4 = np.empty(n)
-    tmp = np.empty(n)
+    k1, k2, k3, k4, tmp = rk4_scratch(n)
     records[0] = y
     nb = m[0]
     P = m[5].shape[0]
