@@ -259,10 +259,13 @@ def _lframe_views(lframe, names):
     for m in range(4):
         if (count[:, m] > 0).sum() < 2:
             _fail(f"L-frame take: marker {m} is seen by fewer than two cameras")
-    with np.errstate(invalid="ignore"):
-        mean = np.nanmean(np.where(seen[..., None], lframe, np.nan), axis=1)  # (cams, 4, 2)
-        spread = np.sqrt(np.nanmean((lframe - mean[:, None]) ** 2, axis=(1, 3)))  # (cams, 4)
-    spread = np.where(count > 0, spread, 0.0)
+    # Sums over seen frames, not nanmean: a camera that never sees a marker
+    # (legal, as long as two others do) would make nanmean warn.
+    total = np.where(seen[..., None], lframe, 0.0).sum(axis=1)  # (cams, 4, 2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(count[..., None] > 0, total / count[..., None], np.nan)
+        dev2 = np.where(seen[..., None], (lframe - mean[:, None]) ** 2, 0.0).sum(axis=(1, 3))
+        spread = np.where(count > 0, np.sqrt(dev2 / np.maximum(2 * count, 1)), 0.0)  # (cams, 4)
     c, m = np.unravel_index(np.argmax(spread), spread.shape)
     if spread[c, m] > 2.0:
         _fail(f"L-frame take: marker {m} moves by {spread[c, m]:.1f} px RMS in {_label(names, c)}; "

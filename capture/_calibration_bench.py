@@ -13,8 +13,9 @@ import time
 import numpy as np
 
 from ._calibration import calibrate, triangulate_views
-from ._cameras import camera_centre, project_points
+from ._cameras import camera_centre
 from ._lab import IMAGE_SIZE, NOMINAL_FOCAL_PX, WAND_LENGTH, default_lab_cameras, lframe_points, wand_motion
+from ._synth import on_sensor, project_views
 
 __all__ = ["bench_calibration", "synthesise_takes"]
 
@@ -23,16 +24,17 @@ LFRAME_FRAMES = 200
 
 
 def _observe(points, cameras, noise_px, rng):
-    """Noisy pixel views (cameras, ..., 2) of points (..., 3); NaN off the image."""
-    views = []
-    for cam in cameras:
-        px = project_points(points, cam)
-        px = px + rng.normal(0.0, noise_px, px.shape)
-        w, h = cam.image_size
-        off = ~((px[..., 0] >= 0) & (px[..., 0] <= w - 1) & (px[..., 1] >= 0) & (px[..., 1] <= h - 1))
-        px[off] = np.nan
-        views.append(px)
-    return np.array(views)
+    """Noisy pixel views (cameras, ..., 2) of points (..., 3).
+
+    NaN where ``project_views`` finds no view (behind the camera, beyond the
+    lens's usable field, off the sensor) or noise pushes the centroid off
+    the sensor.
+    """
+    px = project_views(points, cameras)
+    px = px + rng.normal(0.0, noise_px, px.shape)
+    for c, cam in enumerate(cameras):
+        px[c][~on_sensor(px[c], cam.image_size)] = np.nan
+    return px
 
 
 def synthesise_takes(cameras, n_frames, noise_px, rng, lframe_frames=LFRAME_FRAMES, rate_hz=200.0,

@@ -27,6 +27,12 @@ Method
    long as at least ``min_views`` views remain; a point whose remaining views
    still disagree, or that has fewer than ``min_views`` views, is NaN. A
    ghost (a wrong centroid in a marker's slot) is such an outlier view.
+   Before that greedy drop, a point of three or more views that fails the
+   test restarts from the pair of its views that most other views agree
+   with (``_consensus_views``): a ghost can pull the all-view solution
+   towards itself so far that the worst view is a genuine one. A point left
+   with two views is held to half the threshold (px): its residual is the
+   epipolar part of the error alone, and no third view can outvote a ghost.
 5. Optional Gauss-Newton refinement of the reprojection error (vectorised).
 """
 
@@ -234,6 +240,58 @@ def _gauss_newton(X, xn, yn, used, Rs, ts, fxy, iterations=3):
     return X
 
 
+def _consensus_views(idx, used, feats, consts, Rs, ts, fxy, fbar, xs, ys, thr2):
+    """The views of points ``idx`` that agree with their best pair of views.
+
+    Every pair of a point's views is triangulated on its own (depth-weighted,
+    as in the main solve); the pair must meet the two-view threshold and is
+    scored by how many of the point's views reproject within ``thr2``, ties
+    going to the smaller sum of squared errors over those views. Greedy
+    dropping of the worst view fails when a ghost pulls the all-view
+    solution towards itself: with three or four views it can leave the ghost
+    and one genuine view, which always agree with each other. The pair that
+    most views agree with is the genuine one whenever genuine views
+    outnumber the ghosts. When no third view backs any pair and two pairs
+    with different views both agree (a ghost on the epipolar line), nothing
+    says which is genuine: the point gets no views (NaN), not a guess.
+    Returns ``(C, len(idx))`` bool: the inliers of each point's best pair.
+    """
+    C = used.shape[0]
+    u = used[:, idx]
+    fi = feats[..., idx]
+    xi, yi = xs[:, idx], ys[:, idx]
+    w0 = (fbar ** 2)[:, None]
+    best_key = np.full(idx.size, -np.inf)
+    best_in = np.zeros((C, idx.size), dtype=bool)
+    best_count = np.zeros(idx.size, dtype=np.int64)
+    ambiguous = np.zeros(idx.size, dtype=bool)
+    for a in range(C):
+        for b in range(a + 1, C):
+            pair = np.zeros_like(u)
+            pair[[a, b]] = u[[a, b]]
+            has = pair[a] & pair[b]
+            if not has.any():
+                continue
+            Xp = _solve(fi, w0 * pair, consts)
+            Xp2 = _solve(fi, _weights(_depths(np.nan_to_num(Xp), Rs, ts), pair, fbar), consts)
+            Xp = np.where(np.isfinite(Xp2), Xp2, Xp)
+            e2 = _reprojection_sq(Xp, xi, yi, u, Rs, ts, fxy)
+            inl = u & (e2 <= thr2) & has[None, :]
+            count = inl.sum(axis=0)
+            # More agreeing views first; the sum of their errors (< C * thr2) breaks ties.
+            key = count * (C + 1) * thr2 - np.where(inl, e2, 0.0).sum(axis=0)
+            key[~(has & (e2[a] <= thr2 / 4) & (e2[b] <= thr2 / 4))] = -np.inf
+            valid = np.isfinite(key)
+            ambiguous |= valid & (count == 2) & (best_count == 2) & (inl != best_in).any(axis=0)
+            better = key > best_key
+            ambiguous[better & (count > 2)] = False
+            best_key[better] = key[better]
+            best_count[better] = count[better]
+            best_in[:, better] = inl[:, better]
+    best_in[:, ambiguous] = False
+    return best_in
+
+
 def _triangulate_block(xn, yn, seen, consts, Rs, ts, fxy, fbar, thr2, min_views, refine):
     C, N = xn.shape
     used = seen.copy()
@@ -259,6 +317,22 @@ def _triangulate_block(xn, yn, seen, consts, Rs, ts, fxy, fbar, thr2, min_views,
     if idx.size:
         X[idx] = solve(idx)
     rejected = np.zeros(N, dtype=np.int64)
+    if idx.size and C > 2:
+        # Points whose views disagree restart from the pair of views that the
+        # most other views agree with; the greedy drop below then only cleans up.
+        e_all = _reprojection_sq(X[idx], xs[:, idx], ys[:, idx], used[:, idx], Rs, ts, fxy)
+        e_all[~used[:, idx]] = -1.0
+        suspect = idx[(e_all.max(axis=0) > thr2) & (n[idx] > 2)]
+        if suspect.size:
+            keep = _consensus_views(suspect, used, feats, consts, Rs, ts, fxy, fbar, xs, ys, thr2)
+            rejected[suspect] = (used[:, suspect] & ~keep).sum(axis=0)
+            used[:, suspect] = keep
+            n[suspect] = keep.sum(axis=0)
+            X[suspect] = np.nan
+            ok = suspect[n[suspect] >= min_views]
+            if ok.size:
+                X[ok] = solve(ok)
+            idx = np.flatnonzero(n >= min_views)
     for _ in range(C + 1):
         if idx.size == 0:
             break
@@ -272,7 +346,10 @@ def _triangulate_block(xn, yn, seen, consts, Rs, ts, fxy, fbar, thr2, min_views,
             ei[:, singular] = np.inf
         ei[~u] = -1.0
         e2[:, sel] = ei
-        bad = ei.max(axis=0) > thr2
+        # Two views have no third to outvote a wrong one, and their residual
+        # is the epipolar part of the error only: hold them to a quarter of
+        # the squared threshold (half in pixels).
+        bad = ei.max(axis=0) > np.where(n[idx] > 2, thr2, thr2 / 4)
         if not bad.any():
             break
         bidx = idx[bad]
@@ -309,7 +386,8 @@ def triangulate(detections, cameras, max_reprojection_px=3.0, min_views=2, refin
     max_reprojection_px : float, optional
         A view whose reprojection error (px, undistorted image) exceeds this
         is an outlier or ghost; the worst such view is dropped and the point
-        re-solved, repeatedly, while ``min_views`` views remain.
+        re-solved, repeatedly, while ``min_views`` views remain. A point of
+        two views is held to half of it.
     min_views : int, optional
         Fewest agreeing views a point needs (at least 2); otherwise NaN.
     refine : bool, optional

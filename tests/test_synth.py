@@ -159,7 +159,8 @@ def test_noise_has_the_configured_spread(run, cams):
                                         occlusion=False, wand_frames=WAND)
     resid = session.trial - truth["exact"]
     ok = np.isfinite(resid).all(axis=-1)
-    assert ok.mean() > 0.9
+    # Noise loses only views it pushes off the sensor.
+    assert ok.sum() > 0.99 * np.isfinite(truth["exact"]).all(axis=-1).sum()
     r = resid[ok]
     assert r.size > 20000
     assert np.std(r) == pytest.approx(0.5, rel=0.03)
@@ -172,7 +173,9 @@ def test_noise_has_the_configured_spread(run, cams):
     clean, truth0 = synthesize_session(run, cams, seed=1, noise_px=0.0, dropout=0.0, ghost_rate=0.0,
                                        occlusion=False, wand_frames=WAND)
     np.testing.assert_array_equal(clean.trial, truth0["exact"])
-    np.testing.assert_allclose(clean.trial[2, 7], project_points(truth0["markers"][7], cams[2]))
+    seen = np.isfinite(clean.trial[2, 7]).all(axis=-1)
+    assert seen.sum() > 10
+    np.testing.assert_allclose(clean.trial[2, 7][seen], project_points(truth0["markers"][7], cams[2])[seen])
 
 
 def test_dropout_and_ghost_rates_are_as_configured(run, cams):
