@@ -133,11 +133,12 @@ def lframe_points():
     """Inertial positions (m) of the four L-frame markers, shape (4, 3).
 
     The L-frame lies on the floor (z = 0) in the middle of the bucket's
-    work area, where every camera sees it: marker 0 is the corner, markers
-    1 and 2 lie on the long arm along +I (0.30 m and 0.70 m from the
-    corner, unequal so the arm's direction is unambiguous), marker 3 on the
-    short arm along +J (0.40 m). The markers define origin and axes; their
-    order is the order of the detections in the L-frame take.
+    work area, where five or six cameras see each marker (calibration needs
+    two): marker 0 is the corner, markers 1 and 2 lie on the long arm along
+    +I (0.30 m and 0.70 m from the corner, unequal so the arm's direction
+    is unambiguous), marker 3 on the short arm along +J (0.40 m). The
+    markers define origin and axes; their order is the order of the
+    detections in the L-frame take.
     """
     corner = np.array([-3.0, -0.2, 0.0])
     arms = np.array([[0.0, 0.0, 0.0], [0.30, 0.0, 0.0], [0.70, 0.0, 0.0], [0.0, 0.40, 0.0]])

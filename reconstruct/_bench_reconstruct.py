@@ -30,7 +30,7 @@ import time
 
 import numpy as np
 
-from ..capture._cameras import project_points
+from ..capture._synth import project_views
 from ..capture._lab import default_lab_cameras
 from ..simulate import load_rig, marker_positions, simulate
 from ._bench import bench_triangulation
@@ -53,15 +53,9 @@ def _rms(x):
 
 
 def _gaussian_session(pos, cameras, noise_px, rng):
-    """Projection, NaN off the sensor, Gaussian centroid noise: nothing else."""
-    det = []
-    for cam in cameras:
-        px = project_points(pos, cam)
-        w, h = cam.image_size
-        off = ~((px[..., 0] >= 0) & (px[..., 0] < w) & (px[..., 1] >= 0) & (px[..., 1] < h))
-        px[off] = np.nan
-        det.append(px + rng.normal(0.0, noise_px, px.shape))
-    return np.stack(det)
+    """Views where a true lens gives one (``project_views``), Gaussian centroid noise: nothing else."""
+    px = project_views(pos, cameras)
+    return px + rng.normal(0.0, noise_px, px.shape)
 
 
 def _synth_session(result, cameras, seed, noise_px):
