@@ -20,11 +20,11 @@ Magnitudes: from barely detectable to strong, each strictly inside the
 searched range and off the fit's log grid (a truth on a grid point or at a
 bound would be "found" exactly by construction). The weakest sit near the
 null test's threshold: a held-out improvement of a few times what noise
-alone gives (measured with the current lab, 0.9 mm marker noise: sheave
-inertia 9e-6 kg m^2 scored 7.9 times the threshold, bending damping 6e-4
-N m s/rad 2.9, aero drag cd 0.12 20, near the bottom of its range; with
-the earlier wide-angle lab, 1.6 mm, they scored 2.6, 2.0 and 7.7, and
-inertia 7.5e-6 0.9). Chain-link and pulley friction are
+alone gives (measured with the current lab, 0.9 mm marker noise, and the
+threshold's floor at 200: sheave inertia 9e-6 kg m^2 scored 5.2 times the
+threshold, bending damping 6e-4 N m s/rad 2.9, aero drag cd 0.12 14, near
+the bottom of its range; ``LIMIT_CASES`` straddle the edge). Chain-link
+and pulley friction are
 strong already at the bottom of their plausible ranges (a signal of 160
 and 1600 noise sigmas at mu 0.01 and 0.005), so their weakest cases are
 the range's bottom, not the detection limit.
