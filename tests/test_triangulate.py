@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from dragline.capture._cameras import Camera, project_points
+from dragline.capture._cameras import Camera, camera_centre, project_points
 from dragline.reconstruct import triangulate, undistort_detections
 
 
@@ -150,7 +150,7 @@ def test_ghosts_are_rejected():
     assert np.nanmax(info["rms_px"]) < 1.0
 
 
-def test_a_ghost_never_survives_among_three_or_four_views():
+def test_ghosts_among_three_or_four_views_are_outvoted():
     # Greedy dropping of the worst view failed here: a ghost pulled the
     # all-view solution towards itself, a genuine view came out worst, and
     # the ghost plus one genuine view (which always agree) made a point
@@ -186,7 +186,7 @@ def test_two_views_are_held_to_half_the_threshold():
     truth = _truth(np.random.default_rng(12), frames=1, markers=2)
     det = _detect(truth, cams)
     det[2:] = np.nan
-    epipole = project_points(_centre(cams[1])[None], cams[0])[0]
+    epipole = project_points(camera_centre(cams[1])[None], cams[0])[0]
     along = det[0, 0] - epipole
     across = np.stack([-along[:, 1], along[:, 0]], axis=-1) / np.linalg.norm(along, axis=-1, keepdims=True)
     det[0, 0, 0] += 4.0 * across[0]  # about 2 px in each view: within 3, beyond 1.5
@@ -198,10 +198,6 @@ def test_two_views_are_held_to_half_the_threshold():
     # With the same views, a threshold twice as high keeps the first point.
     pts6, info6 = triangulate(det, cams, max_reprojection_px=6.0)
     assert np.isfinite(pts6[0, 0]).all() and 1.5 < info6["rms_px"][0, 0] < 2.5
-
-
-def _centre(cam):
-    return -cam.R.T @ cam.tvec
 
 
 def test_two_disagreeing_views_give_nan():
