@@ -45,8 +45,8 @@ on the other exactly as above. The threshold is the ``NULL_QUANTILE``
 quantile of the largest improvement over candidates (a family-wise test),
 and never below ``MIN_IMPROVEMENT`` (twenty times ln N, ln N the BIC
 penalty of one parameter: an allowance for the reconstruction's systematic
-errors, measured on blind sessions, see the constant). A candidate is significant when ``D`` exceeds it; ``score`` is
-``D / threshold``.
+errors, measured on blind sessions, see the constant). A candidate is
+significant when ``D`` exceeds it; ``score`` is ``D / threshold``.
 
 Parameter uncertainty
 ---------------------

@@ -30,8 +30,8 @@ import time
 
 import numpy as np
 
-from ..capture._synth import project_views
 from ..capture._lab import default_lab_cameras
+from ..capture._synth import project_views
 from ..simulate import load_rig, marker_positions, simulate
 from ._bench import bench_triangulation
 from ._pipeline import fill_markers, reconstruct_markers, trajectory_from_markers
