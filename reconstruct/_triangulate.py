@@ -317,23 +317,7 @@ def _triangulate_block(xn, yn, seen, consts, Rs, ts, fxy, fbar, thr2, min_views,
     if idx.size:
         X[idx] = solve(idx)
     rejected = np.zeros(N, dtype=np.int64)
-    if idx.size and C > 2:
-        # Points whose views disagree restart from the pair of views that the
-        # most other views agree with; the greedy drop below then only cleans up.
-        e_all = _reprojection_sq(X[idx], xs[:, idx], ys[:, idx], used[:, idx], Rs, ts, fxy)
-        e_all[~used[:, idx]] = -1.0
-        suspect = idx[(e_all.max(axis=0) > thr2) & (n[idx] > 2)]
-        if suspect.size:
-            keep = _consensus_views(suspect, used, feats, consts, Rs, ts, fxy, fbar, xs, ys, thr2)
-            rejected[suspect] = (used[:, suspect] & ~keep).sum(axis=0)
-            used[:, suspect] = keep
-            n[suspect] = keep.sum(axis=0)
-            X[suspect] = np.nan
-            ok = suspect[n[suspect] >= min_views]
-            if ok.size:
-                X[ok] = solve(ok)
-            idx = np.flatnonzero(n >= min_views)
-    for _ in range(C + 1):
+    for round_ in range(C + 1):
         if idx.size == 0:
             break
         sel = slice(None) if idx.size == N else idx
@@ -353,10 +337,23 @@ def _triangulate_block(xn, yn, seen, consts, Rs, ts, fxy, fbar, thr2, min_views,
         if not bad.any():
             break
         bidx = idx[bad]
-        worst = np.argmax(ei[:, bad], axis=0)
-        used[worst, bidx] = False
-        rejected[bidx] += 1
-        n[bidx] -= 1
+        greedy = np.ones(bidx.size, dtype=bool)
+        if round_ == 0 and C > 2:
+            # Points of three views or more whose views disagree restart from
+            # the pair of views that the most other views agree with; the
+            # greedy drop of later rounds then only cleans up.
+            greedy = (n[bidx] <= 2) | singular[bad]
+            multi = bidx[~greedy]
+            if multi.size:
+                keep = _consensus_views(multi, used, feats, consts, Rs, ts, fxy, fbar, xs, ys, thr2)
+                rejected[multi] += (used[:, multi] & ~keep).sum(axis=0)
+                used[:, multi] = keep
+                n[multi] = keep.sum(axis=0)
+        worst = np.argmax(ei[:, bad][:, greedy], axis=0)
+        drop = bidx[greedy]
+        used[worst, drop] = False
+        rejected[drop] += 1
+        n[drop] -= 1
         X[bidx[n[bidx] < min_views]] = np.nan
         idx = bidx[n[bidx] >= min_views]
         if idx.size:
