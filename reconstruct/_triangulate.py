@@ -27,9 +27,9 @@ Method
    long as at least ``min_views`` views remain; a point whose remaining views
    still disagree, or that has fewer than ``min_views`` views, is NaN. A
    ghost (a wrong centroid in a marker's slot) is such an outlier view.
-   Before that greedy drop, a point of three or more views that fails the
-   test restarts from the pair of its views that most other views agree
-   with (``_consensus_views``): a ghost can pull the all-view solution
+   In the first round, instead of that drop, a point of three or more
+   views that fails the test restarts from the pair of its views that most
+   other views agree with (``_consensus_views``): a ghost can pull the all-view solution
    towards itself so far that the worst view is a genuine one. A point left
    with two views is held to half the threshold (px): its residual is the
    epipolar part of the error alone, and no third view can outvote a ghost.
@@ -261,9 +261,9 @@ def _consensus_views(idx, used, feats, consts, Rs, ts, fxy, fbar, xs, ys, thr2):
     fi = feats[..., idx]
     xi, yi = xs[:, idx], ys[:, idx]
     w0 = (fbar ** 2)[:, None]
-    best_key = np.full(idx.size, -np.inf)
-    best_in = np.zeros((C, idx.size), dtype=bool)
     best_count = np.zeros(idx.size, dtype=np.int64)
+    best_sum = np.full(idx.size, np.inf)
+    best_in = np.zeros((C, idx.size), dtype=bool)
     ambiguous = np.zeros(idx.size, dtype=bool)
     for a in range(C):
         for b in range(a + 1, C):
@@ -278,15 +278,14 @@ def _consensus_views(idx, used, feats, consts, Rs, ts, fxy, fbar, xs, ys, thr2):
             e2 = _reprojection_sq(Xp, xi, yi, u, Rs, ts, fxy)
             inl = u & (e2 <= thr2) & has[None, :]
             count = inl.sum(axis=0)
-            # More agreeing views first; the sum of their errors (< C * thr2) breaks ties.
-            key = count * (C + 1) * thr2 - np.where(inl, e2, 0.0).sum(axis=0)
-            key[~(has & (e2[a] <= thr2 / 4) & (e2[b] <= thr2 / 4))] = -np.inf
-            valid = np.isfinite(key)
+            total = np.where(inl, e2, 0.0).sum(axis=0)
+            valid = has & (e2[a] <= thr2 / 4) & (e2[b] <= thr2 / 4)
             ambiguous |= valid & (count == 2) & (best_count == 2) & (inl != best_in).any(axis=0)
-            better = key > best_key
+            # More agreeing views first; the sum of their errors breaks ties.
+            better = valid & ((count > best_count) | ((count == best_count) & (total < best_sum)))
             ambiguous[better & (count > 2)] = False
-            best_key[better] = key[better]
             best_count[better] = count[better]
+            best_sum[better] = total[better]
             best_in[:, better] = inl[:, better]
     best_in[:, ambiguous] = False
     return best_in
