@@ -13,11 +13,10 @@ from matplotlib.figure import Figure
 
 from ._compare import channel_kind
 from ._locate import LOWPASS_S, low_pass
-from ._report import text_pages, report_pdf
+from ._report import PAGE_SIZE, report_pdf, text_pages
 
 __all__ = ["write_report_pdf"]
 
-PAGE_SIZE = (8.27, 11.69)  # A4 portrait, inches
 DEG = 180.0 / math.pi
 PLOT = {"position": (1.0, "m"), "angle": (DEG, "deg"), "rope_length": (1.0, "m")}
 RESID = {"position": (1000.0, "mm"), "angle": (DEG, "deg"), "rope_length": (1000.0, "mm")}

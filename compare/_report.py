@@ -24,12 +24,7 @@ from matplotlib.figure import Figure
 from ._align import align_tables
 from ._compare import FREE_DECAY_CHANNELS, TOLERANCES, channel_kind
 from ._paper import DIG_PEAKS, FIGURES
-from ._report_figures import (
-    ERROR_UNITS,
-    discretization_page,
-    figure_pages,
-    free_decay_page,
-)
+from ._report_figures import ERROR_UNITS, discretization_page, figure_pages, free_decay_page
 
 __all__ = ["write_report", "report_pdf", "REPORT_STYLE"]
 
@@ -51,7 +46,6 @@ TEXT_WIDTH_IN = 7.3
 TEXT_TOP, TEXT_BOTTOM = 0.91, 0.04
 
 
-
 @contextmanager
 def report_pdf(path, title):
     """A deterministic PDF (no dates, ``REPORT_STYLE``) written under a temporary name, renamed when complete."""
@@ -65,6 +59,7 @@ def report_pdf(path, title):
     finally:
         if os.path.exists(tmp):
             os.remove(tmp)
+
 
 def fmt(value, spec=".3g", none="-"):
     """Format a number for a table; ``none`` for None or NaN."""
