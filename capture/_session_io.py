@@ -15,9 +15,21 @@ import shutil
 
 from ._mcap_io import SESSION_FILE, write_session
 
-__all__ = ["SESSION_FILE", "MANEUVER_FILE", "session_file", "check_directory_target", "atomic_directory", "write_session_dir"]
+__all__ = ["SESSION_FILE", "MANEUVER_FILE", "SESSION_FILES", "OUTPUT_MARKER", "session_file", "check_directory_target",
+           "atomic_directory", "mark_output", "write_session_dir"]
 
 MANEUVER_FILE = "maneuver.csv"
+#: Every file a command may read from a session directory.
+SESSION_FILES = (SESSION_FILE, MANEUVER_FILE, "markers.csv")
+#: Left in every folder dragline writes: ``--force`` replaces only a folder
+#: that holds it, never one the user made.
+OUTPUT_MARKER = ".dragline-output"
+
+
+def mark_output(folder, command):
+    """Leave the marker that lets ``--force`` replace ``folder`` later."""
+    with open(os.path.join(folder, OUTPUT_MARKER), "w") as fh:
+        fh.write(f"written by dragline {command}; --force may replace this folder\n")
 
 
 def session_file(path):
@@ -50,11 +62,15 @@ def check_directory_target(path, overwrite=False):
     if os.path.lexists(path):
         if not os.path.isdir(path):
             raise ValueError(f"{path} exists and is not a directory")
-        if os.listdir(path) and not overwrite:
+        entries = os.listdir(path)
+        if entries and not overwrite:
             raise ValueError(f"{path} exists and is not empty (choose another name, or --force to replace it)")
+        if entries and OUTPUT_MARKER not in entries:
+            raise ValueError(f"{path} was not written by dragline (no {OUTPUT_MARKER} in it); --force replaces only "
+                             "a folder dragline wrote: remove it yourself or choose another name")
 
 
-def atomic_directory(path, fill, overwrite=False):
+def atomic_directory(path, fill, overwrite=False, command="synth"):
     """Create directory ``path`` complete: ``fill(tmp_dir)`` writes into a sibling, then it is renamed.
 
     Parameters
@@ -66,6 +82,8 @@ def atomic_directory(path, fill, overwrite=False):
     fill : callable
         ``fill(tmp_dir)`` writes every file.
     overwrite : bool
+    command : str
+        The command named in the folder's marker (``OUTPUT_MARKER``).
 
     Returns
     -------
@@ -76,7 +94,8 @@ def atomic_directory(path, fill, overwrite=False):
     ------
     ValueError
         If the parent folder is missing or read-only, or ``path`` is a file
-        or a non-empty directory without ``overwrite``.
+        or a non-empty directory without ``overwrite`` or not written by
+        dragline.
     """
     path = os.path.abspath(os.fspath(path))
     check_directory_target(path, overwrite)
@@ -88,6 +107,7 @@ def atomic_directory(path, fill, overwrite=False):
     os.mkdir(tmp)
     try:
         fill(tmp)
+        mark_output(tmp, command)
         moved = os.path.isdir(path) and bool(os.listdir(path))
         if moved:
             os.rename(path, old)

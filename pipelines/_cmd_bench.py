@@ -6,6 +6,8 @@ import json
 import os
 import sys
 
+from ._options import check_output_path
+
 
 def add_parser(sub):
     p = sub.add_parser("bench", help="measure speed and accuracy (prints figures)",
@@ -57,6 +59,8 @@ BENCHES = {"simulate": _simulate, "capture": _capture, "reconstruct": _reconstru
 def run(args):
     if args.repeats < 1:
         raise ValueError("--repeats must be at least 1")
+    if args.json:
+        check_output_path(args.json)
     report, lines = BENCHES[args.what](args)
     text = json.dumps(report, indent=2, default=float)
     if args.json:

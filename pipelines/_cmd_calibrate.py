@@ -8,8 +8,9 @@ import time
 
 from dragline.capture import calibrate, read_session
 from dragline.capture._cameras import camera_centre, save_cameras
-from dragline.capture._session_io import session_file
+from dragline.capture import session_file
 
+from ._guard import guard_outputs, session_inputs
 from ._options import check_output_path
 
 
@@ -52,6 +53,7 @@ def _text(quality, cameras, path, seconds):
 
 def run(args):
     check_output_path(args.out)
+    guard_outputs(session_inputs(args.session), files=[args.out])
     if args.max_frames < 100:
         raise ValueError(f"--max-frames must be at least 100, got {args.max_frames}")
     path = session_file(args.session)

@@ -10,6 +10,7 @@ import numpy as np
 from dragline.compare import compare_tables, discretization_study, read_trajectory_table, write_report
 from dragline.compare._files import write_json
 
+from ._guard import guard_outputs
 from ._options import check_output_path, maneuver_from_args, physics_from_args, rig_from_args
 
 
@@ -60,6 +61,8 @@ def run(args):
     for path in (args.report, args.json):
         if path:
             check_output_path(path)
+    guard_outputs([args.measured, args.simulated, getattr(args, "rig", None), getattr(args, "maneuver", None)],
+                  files=[args.report, args.json])
     offset = _time_offset(args.time_offset)
     measured = read_trajectory_table(args.measured, "measured")
     simulated = read_trajectory_table(args.simulated, "simulated")

@@ -12,6 +12,7 @@ from dragline.compare._diagnose import (
 )
 from dragline.compare._hypotheses import candidate_list
 
+from ._guard import guard_outputs, session_inputs
 from ._options import check_output_path, discretization_from_args, rig_from_args
 
 
@@ -46,8 +47,8 @@ def run(args):
     outputs = [p for p in (args.json, args.report) if p]
     for path in outputs:
         check_output_path(path)
-    if args.report and args.report == args.json:
-        raise ValueError("--json and --report must name different files")
+    guard_outputs([*session_inputs(args.input, extra=("cameras.json",)), args.maneuver, args.calibration, args.rig],
+                  files=outputs)
     if args.workers < 1:
         raise ValueError("--workers must be at least 1")
     names = None

@@ -51,7 +51,7 @@ def _mcap(path, folder=None):
     out = {"kind": "session" if folder else "mcap", **summary}
     if folder:
         out["folder"] = folder
-        out["files"] = sorted(os.listdir(folder))
+        out["files"] = sorted(f for f in os.listdir(folder) if not f.startswith("."))
     if summary["session"] is not None:
         session, _ = read_session(path)
         seen = np.isfinite(session.trial).all(axis=-1).sum(axis=0)  # (frames, markers)

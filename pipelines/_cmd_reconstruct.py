@@ -24,6 +24,7 @@ from dragline.reconstruct._pipeline import (
 )
 from dragline.simulate import write_trajectory_csv
 
+from ._guard import guard_outputs, session_inputs
 from ._options import check_output_path, rig_from_args
 
 
@@ -111,9 +112,8 @@ def run(args):
         raise ValueError("--outlier-mm must be >= 0")
     if not args.max_reprojection_px > 0:
         raise ValueError("--max-reprojection-px must be positive")
+    guard_outputs([*session_inputs(args.input, extra=("cameras.json",)), args.calibration, args.rig], files=outputs)
     kind, path, session_dir = _resolve_input(args.input)
-    if os.path.abspath(path) in map(os.path.abspath, outputs):
-        raise ValueError(f"{path}: the input would be overwritten by an output")
     rig = rig_from_args(args)
     options = dict(rig=rig, method=args.method, smoothing=args.smoothing, max_gap=args.max_gap,
                    max_deviation=args.outlier_mm * 1e-3 if args.outlier_mm > 0 else None)

@@ -36,7 +36,8 @@ def run(args):
     study = config["run"]["study"] and not args.no_study
     config["run"]["diagnose"] = config["run"]["diagnose"] and not getattr(args, "no_diagnose", False)
     summary = run_pipeline(args.source, args.out, seed=seed, maneuver=maneuver, study=study, quiet=args.quiet,
-                           force=args.force, config=config, verbose=getattr(args, "verbose", False))
+                           force=args.force, config=config, verbose=getattr(args, "verbose", False),
+                           inputs=(getattr(args, "config", None), args.maneuver))
     if args.json:
         print(json.dumps(summary, indent=2, default=float))
         return 0

@@ -7,6 +7,7 @@ import time
 
 from dragline.simulate import simulate, write_trajectory_csv
 
+from ._guard import guard_outputs
 from ._options import (
     add_model_options,
     check_output_path,
@@ -30,6 +31,7 @@ def add_parser(sub):
 
 def run(args):
     check_output_path(args.out)
+    guard_outputs([args.rig, args.maneuver], files=[args.out])
     rig = rig_from_args(args)
     maneuver = maneuver_from_args(args)
     discretization = discretization_from_args(args)

@@ -8,17 +8,17 @@ goes to ``--truth-out`` and nowhere else.
 from __future__ import annotations
 
 import dataclasses
-import os
 import sys
 import time
 
 import numpy as np
 
 from dragline.capture._lab import default_lab_cameras
-from dragline.capture._session_io import atomic_directory, check_directory_target, write_session_dir
+from dragline.capture import atomic_directory, check_directory_target, write_session_dir
 from dragline.capture._synth import DEFAULTS, MAX_RATE_HZ, synthesize_session, write_truth
 from dragline.simulate import simulate
 
+from ._guard import guard_outputs
 from ._options import (
     add_model_options,
     discretization_from_args,
@@ -64,11 +64,6 @@ def add_parser(sub):
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
 
 
-def _inside(path, folder):
-    path, folder = os.path.realpath(path), os.path.realpath(folder)
-    return path == folder or path.startswith(folder + os.sep)
-
-
 def _check_args(args):
     if not 0 < args.rate <= MAX_RATE_HZ:
         raise ValueError(f"--rate must be in (0, {MAX_RATE_HZ:g}] Hz, got {args.rate:g}")
@@ -86,11 +81,9 @@ def _check_args(args):
         raise ValueError("--wand-frames and --lframe-frames must be >= 0")
     if not 0 < args.wand_rate <= MAX_RATE_HZ:
         raise ValueError(f"--wand-rate must be in (0, {MAX_RATE_HZ:g}] Hz, got {args.wand_rate:g}")
+    guard_outputs([args.rig, args.maneuver], folders=[args.out, args.truth_out])
     check_directory_target(args.out, args.force)
     if args.truth_out is not None:
-        if _inside(args.truth_out, args.out):
-            raise ValueError(f"--truth-out {args.truth_out} lies in the session directory; "
-                             "the truth must never go there")
         check_directory_target(args.truth_out, args.force)
 
 

@@ -96,7 +96,7 @@ class _Stages:
 
 
 def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False, force=False, config=None,
-                 verbose=False):
+                 verbose=False, inputs=()):
     """Run every stage and write the outputs into ``out_dir``.
 
     Parameters
@@ -115,15 +115,27 @@ def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False
     config : dict, optional
         Stage options (``read_config``); ``seed``, ``maneuver`` and ``study``
         given as arguments take precedence.
+    inputs : tuple of str
+        Other files the caller read (a config file, a maneuver CSV): the
+        output directory must neither be one nor hold one.
 
     Returns
     -------
     dict
         Summary: files written, stage times (s), headline comparison figures.
     """
+    from dragline.capture import OUTPUT_MARKER, mark_output
+
+    from ._guard import guard_outputs, session_inputs
+
     out = Path(out_dir)
+    settings = (config or DEFAULTS)["simulate"]
+    guard_outputs([*session_inputs(source), settings.get("rig"), settings.get("maneuver"), *inputs], folders=[out])
     if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not force)):
         raise ValueError(f"output {out} exists and is not empty (use --force to replace it)")
+    if out.is_dir() and any(out.iterdir()) and not (out / OUTPUT_MARKER).exists():
+        raise ValueError(f"{out} was not written by dragline (no {OUTPUT_MARKER} in it); --force replaces only a "
+                         "folder dragline wrote: remove it yourself or choose another name")
     parent = out.resolve().parent
     try:
         # An output directory is made like `mkdir -p`: scripts name nested
@@ -140,6 +152,7 @@ def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False
     stages = _Stages(quiet, verbose)
     try:
         summary = _run_into(source, tmp, seed, maneuver, study, stages, config)
+        mark_output(tmp, "run")
         if out.exists():
             shutil.rmtree(out)
         os.replace(tmp, out)

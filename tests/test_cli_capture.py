@@ -58,8 +58,9 @@ def _error_line(capsys):
 # ---------------------------------------------------------------- synth
 
 def test_synth_writes_the_session_and_the_truth_apart(lab):
-    assert sorted(os.listdir(lab["session"])) == ["capture.mcap", "maneuver.csv"]
-    assert sorted(os.listdir(lab["truth"])) == ["cameras.json", "markers.csv", "physics.json", "trajectories.csv"]
+    assert sorted(os.listdir(lab["session"])) == [".dragline-output", "capture.mcap", "maneuver.csv"]
+    assert sorted(os.listdir(lab["truth"])) == [".dragline-output", "cameras.json", "markers.csv", "physics.json",
+                                                "trajectories.csv"]
     assert not [f for f in os.listdir(lab["root"]) if f.startswith(".")]  # no temporary leftovers
     traj = pd.read_csv(lab["truth"] / "trajectories.csv")
     assert list(traj.columns[: len(trajectory_columns())]) == trajectory_columns()

@@ -260,7 +260,7 @@ def test_same_seed_gives_identical_files_and_another_seed_does_not(run, cams, tm
     data = [open(os.path.join(p, "capture.mcap"), "rb").read() for p in paths]
     assert data[0] == data[1]
     assert data[0] != data[2]
-    assert sorted(os.listdir(paths[0])) == ["capture.mcap", "maneuver.csv"]
+    assert sorted(os.listdir(paths[0])) == [".dragline-output", "capture.mcap", "maneuver.csv"]
 
 
 def test_physics_changes_the_trial_and_nothing_else(run, run_drag, cams, tmp_path):
@@ -314,5 +314,5 @@ def test_session_directory_is_created_complete_or_not_at_all(run, cams, tmp_path
     # Replacing keeps the old directory until the new one is complete.
     with pytest.raises(RuntimeError):
         atomic_directory(target, fill, overwrite=True)
-    assert sorted(os.listdir(target)) == ["capture.mcap", "maneuver.csv"]
+    assert sorted(os.listdir(target)) == [".dragline-output", "capture.mcap", "maneuver.csv"]
     assert sorted(os.listdir(tmp_path)) == ["session"]
