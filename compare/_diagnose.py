@@ -1,22 +1,26 @@
 """``dragline diagnose``: what physics does the nominal model leave out?
 
-The four steps of issue 6, on one recording:
+The steps on one recording (``docs/diagnosis.md`` states the method):
 
 1. **Locate** (``_locate``): the nominal simulation of the recorded maneuver
    against the recording, channel by channel and window by window (the
    maneuver's phases, the free decay), in units of the measurement noise
-   estimated from the recording itself; the free decay's frequency,
-   damping and envelope law, measured against simulated.
-2. **Rank** every mechanism in ``dragline.simulate.MECHANISMS`` by how well
-   its signature, on a grid of its main parameter, fits the mismatch.
-3. **Fit** each plausible candidate through the simulator and score it on
-   held-out data (``_hypotheses``: 2-fold cross-validation over alternating
-   blocks).
-4. **Decide**: a mechanism only when its held-out improvement beats what
-   noise alone gives (a surrogate null test); "none" when the nominal model
-   fits within noise; "unexplained" when a structured mismatch remains that
-   no candidate explains, when two candidates are indistinguishable, or
-   when the geometry itself is off.
+   estimated from the recording itself.
+2. **Model error** (``_updating.model_error``): the nominal model against
+   itself at a finer discretization and a smaller step, on this maneuver;
+   those differences become nuisance directions.
+3. **Update** (``_updating.update_model``): the rig's uncertain parameters
+   (the rig file's tolerances) fitted to the recording within their
+   tolerances, before anything is blamed.
+4. **Fit** each candidate mechanism through the simulator on top of the
+   updated model, the parameters refitted with it (linearly for every
+   candidate, nonlinearly for the leading one: ``_updating.joint_refit``),
+   and score it on held-out data (``_hypotheses``).
+5. **Decide**: a mechanism only when its held-out improvement beats what
+   noise alone gives and the model-error budget, at no edge of its range,
+   not confounded with a parameter; "none" when the updated model fits
+   within noise (with the updates that made it fit); "unexplained"
+   otherwise.
 
 Only the motion is read: from a session, the calibration takes and the
 trial's centroids (``capture.mcap``) and the reel table; nothing else the
@@ -39,7 +43,7 @@ from ..simulate import (
     Maneuver,
     dig_maneuver,
     load_rig,
-    parse_physics,
+    make_mechanism,
     read_maneuver_csv,
     simulate,
 )
@@ -83,6 +87,7 @@ from ._locate import (
 )
 from ._metrics import channel_metrics
 from ._second_round import second_round
+from ._updating import joint_refit, model_error, nuisance_correlation, update_model
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json", "write_diagnosis_report"]
 
@@ -104,6 +109,12 @@ MIN_DECAY_S = 2.0
 REQUIRED_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch")
 # Constant offsets beyond these mean the geometry or calibration differs.
 OFFSET_LIMIT = {"position": 0.010, "angle": math.radians(2.0)}
+# With the rig's tolerances, offsets are judged after updating: an offset
+# this many times OFFSET_LIMIT that no parameter explains is another rig.
+DIFFERENT_RIG = 5.0
+# A mechanism must explain at least this share of the chi2 the updated
+# model leaves above noise (see ``diagnose``).
+MODEL_ERROR_SHARE = 0.25
 FREE_DECAY_KEYS = ("frequency_hz", "damping_ratio", "amplitude", "shape", "confidence", "decay_rate",
                    "decrement_per_cycle", "quadratic_coefficient")
 DECAY_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch", "drag_cluster.x", "spreader_bar.pitch",
@@ -123,9 +134,13 @@ class Diagnosis:
         Time base (s, simulation clock).
     channels : list of str
     measured, nominal : ndarray (n, c)
-        SI; the nominal simulation with the nominal model's nuisance
-        (offsets, clock shift) applied, so that ``measured - nominal`` is
-        the residual that was judged.
+        SI; the nominal simulation with its nuisance (offsets, clock shift)
+        applied, so that ``measured - nominal`` is the nominal model's
+        residual.
+    updated : ndarray (n, c) or None
+        The updated model (``_updating``) with its nuisance applied:
+        ``measured - updated`` is the residual the mechanisms were judged
+        against.
     fitted : dict
         Hypothesis name -> (n, c) simulation with its nuisance applied.
     located : dict
@@ -138,6 +153,7 @@ class Diagnosis:
     channels: list
     measured: np.ndarray
     nominal: np.ndarray
+    updated: np.ndarray | None = None
     fitted: dict = field(default_factory=dict)
     located: dict = field(default_factory=dict)
 
@@ -299,7 +315,34 @@ def _check_channels(measured):
     return channels
 
 
-def check_maneuver(measured, estimate, rig):
+def rope_bias_allowance(rig, nominal_table, sigmas=2.5):
+    """How far (m) each rope's mean recorded length may sit from the nominal model's, given the rig's tolerances.
+
+    A rope's recorded (stretched) length moves with its reel's zero and,
+    through its static stretch, with its stiffness: ``sigmas`` standard
+    deviations of both together. Zero for a rig without tolerances.
+    """
+    out = {}
+    t0 = float(nominal_table["time"].iloc[0])
+    for channel in ROPE_CHANNELS:
+        rope = channel.split(".")[0]
+        spec = rig.ropes.get(rope)
+        reel_col = f"{rope}.reel_length"
+        if spec is None or channel not in nominal_table or reel_col not in nominal_table:
+            continue
+        first = nominal_table["time"] == t0
+        stretch = float(nominal_table.loc[first, channel].iloc[0] - nominal_table.loc[first, reel_col].iloc[0])
+        var = 0.0
+        for p in rig.tolerances:
+            if p.kind == "reel_zero" and spec.reel in p.targets:
+                var += p.tolerance**2
+            elif p.kind == "rope" and p.field == "static_stiffness" and rope in p.targets:
+                var += (abs(stretch) * p.tolerance) ** 2
+        out[channel] = sigmas * math.sqrt(var)
+    return out
+
+
+def check_maneuver(measured, estimate, rig, bias_allowance=None):
     """Raise ValueError unless the reel table explains the recorded rope lengths.
 
     Parameters
@@ -310,6 +353,9 @@ def check_maneuver(measured, estimate, rig):
     rig : Rig
         Says which ropes pass a pulley ring (looser tolerance, see
         ``ROPE_TOLERANCE``).
+    bias_allowance : dict, optional
+        Channel -> further mean offset (m) the rig's tolerances allow
+        (``rope_bias_allowance``).
     """
     ropes = [c for c in ROPE_CHANNELS if c in measured.columns and np.isfinite(np.asarray(measured[c], float)).any()]
     if not ropes:
@@ -326,6 +372,7 @@ def check_maneuver(measured, estimate, rig):
     bad = []
     for rope, r in estimate["ropes"].items():
         rms_tol, bias_tol = ROPE_TOLERANCE[_rope_kind(rig, rope)]
+        bias_tol += (bias_allowance or {}).get(rope, 0.0)
         if r["residual_rms"] > rms_tol:
             bad.append((r["residual_rms"] / rms_tol,
                         f"{rope} by {1000 * r['residual_rms']:.0f} mm RMS (tolerance {1000 * rms_tol:.0f} mm)"))
@@ -377,7 +424,7 @@ def _decay_entry(time, values, t_stop):
     return out
 
 
-def _free_decay_section(time, channels, measured, nominal, fitted, fitted_name, t_stop):
+def _free_decay_section(time, channels, measured, nominal, fitted, fitted_name, t_stop, updated=None):
     out = {"t_start": float(t_stop), "t_end": float(time[-1]), "fitted_model": fitted_name, "channels": {}}
     for ch in DECAY_CHANNELS:
         if ch not in channels:
@@ -385,6 +432,8 @@ def _free_decay_section(time, channels, measured, nominal, fitted, fitted_name, 
         j = channels.index(ch)
         entry = {"measured": _decay_entry(time, measured[:, j], t_stop),
                  "nominal": _decay_entry(time, nominal[:, j], t_stop)}
+        if updated is not None:
+            entry["updated"] = _decay_entry(time, updated[:, j], t_stop)
         if fitted is not None:
             entry["fitted"] = _decay_entry(time, fitted[:, j], t_stop)
         m, s = entry["measured"], entry["nominal"]
@@ -539,7 +588,7 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     nominal_run = simulate(rig, maneuver, discretization, [], duration=record + MAX_OFFSET, rate_hz=rate)
     nominal_table = nominal_run.table
     estimate = align_with_maneuver(measured, nominal_table, rig)
-    check_maneuver(measured, estimate, rig)
+    check_maneuver(measured, estimate, rig, rope_bias_allowance(rig, nominal_table))
     offset = float(estimate["offset"])
     t_al = t_meas - offset
     keep = (t_al >= t0 - 1e-9) & (t_al <= float(nominal_run.time[-1]) + 1e-9)
@@ -557,19 +606,42 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     sigma = np.array([noise_level(M[:, j], channel_kind(c)) for j, c in enumerate(channels)])
     problem = Problem(time, M, sigma, t_stop)
     ctx = {"rig": rig, "maneuver": maneuver, "discretization": discretization, "duration": duration,
-           "rate_hz": rate, "initial_state": nominal_run.states[0], "time": time, "channels": channels}
+           "rate_hz": rate, "initial_state": nominal_run.states[0], "time": time, "channels": channels,
+           "nominal_dt": float(nominal_run.dt), "parameters": tuple(rig.tolerances)}
     nominal_sim = np.column_stack([np.interp(time, nominal_run.time, np.asarray(nominal_table[c], float))
                                    for c in channels])
 
-    # 1. Locate.
+    # 1. Locate (the nominal model as the user gave it).
     dt = float(time[1] - time[0])
     width = max(3, int(round(LOWPASS_S / dt)) | 1)
     windows = time_windows(maneuver, t_stop, float(time[-1]))
-    nominal_eval = problem.evaluate(nominal_sim)
-    r0 = problem.residual(nominal_sim, nominal_eval["nuisance"])
+    plain_eval = problem.evaluate(nominal_sim)
+    r_nominal = problem.residual(nominal_sim, plain_eval["nuisance"])
+    located_nominal = locate_mismatch(time, r_nominal, channels, sigma, windows)
+    b0, shift0, _ = plain_eval["nuisance"]
+
+    # 2. The model's own numerical error, then updating within the rig's tolerances.
+    note("estimating the model's own numerical error (finer discretization, half time step)")
+    error_directions, model_error_block = model_error(problem, ctx, nominal_sim, workers=workers)
+    update = None
+    plain_problem, nominal_ctx = problem, ctx
+    if ctx["parameters"]:
+        note(f"updating {len(ctx['parameters'])} rig parameters within their tolerances")
+        update = update_model(problem, ctx, nominal_sim, error_directions, workers=workers, progress=note)
+        ctx = dict(ctx, rig=update["rig"], maneuver=update["maneuver"], initial_state=update["initial_state"])
+        base_sim = update["sim"]
+        tol = np.array([p.tolerance for p in ctx["parameters"]])
+        problem = problem.with_regressors(
+            [*update["sensitivities"], *error_directions],
+            prior_precision=np.r_[1.0 / tol**2, np.zeros(len(error_directions))],
+            prior_mean=np.r_[-update["coords"], np.zeros(len(error_directions))])
+    else:
+        base_sim = nominal_sim
+        problem = problem.with_regressors(error_directions)
+    nominal_eval = problem.evaluate(base_sim)
+    r0 = problem.residual(base_sim, nominal_eval["nuisance"])
     located = locate_mismatch(time, r0, channels, sigma, windows)
     structured_before = [e for e in located if e["significant"]]
-    b0, shift0 = nominal_eval["nuisance"]
 
     # 2-3. Rank and fit.
     cands = candidate_list(candidates)
@@ -582,19 +654,40 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         c["searched"] = affordable_range(c, rig, maneuver, discretization)
         runnable.append(c)
     note(f"fitting {len(runnable)} candidate mechanisms ({', '.join(c['name'] for c in runnable)})")
-    points = fit_candidates(problem, ctx, runnable, nominal_sim, workers=workers, progress=note)
+    points = fit_candidates(problem, ctx, runnable, base_sim, workers=workers, progress=note)
     scored = {c["name"]: score_candidate(problem, c, points[c["name"]]) for c in runnable}
+    joint = None
+    if update is not None and scored:
+        lead = max(runnable, key=lambda c: scored[c["name"]]["improvement"])
+        s = scored[lead["name"]]
+        if s["value"] > 0 and s["improvement"] > 0:
+            note(f"refitting {lead['name']} and the rig parameters together")
+            joint = joint_refit(plain_problem, nominal_ctx, update,
+                                make_mechanism(lead["name"], **{lead["main"]: s["value"]}), error_directions)
+        if joint is not None:
+            value = float(joint["mechanism"].parameters[lead["main"]])
+            points[lead["name"]].append((value, joint["sim"], problem.evaluate(joint["sim"])))
+            scored[lead["name"]] = score_candidate(problem, lead, points[lead["name"]])
+            scored[lead["name"]]["n_simulations"] += joint["n_simulations"] - 1
 
     # 4. Null test: surrogates of the best model's residual.
     best_name = min(scored, key=lambda n: scored[n]["evaluation"]["full"]) if scored else None
     best_res = r0 if best_name is None or scored[best_name]["value"] == 0 else problem.residual(
         scored[best_name]["sim"], scored[best_name]["evaluation"]["nuisance"])
-    signatures = [s["signature_sim"] - nominal_sim for s in scored.values() if s["signature_sim"] is not None]
+    signatures = [s["signature_sim"] - base_sim for s in scored.values() if s["signature_sim"] is not None]
     threshold, q = null_threshold(problem, best_res, signatures, seed=seed)
     z = np.where(problem.valid, best_res, 0.0) / sigma
     tau = autocorrelation_time(z)
     chi_min = min([s["evaluation"]["full"] for s in scored.values()] + [nominal_eval["full"]])
     kappa = max(1.0, chi_min / problem.n_weighted) * float(np.average(tau, weights=(z**2).sum(0) + 1e-12))
+    # The model-error budget: what the updated model leaves above noise
+    # (chi2 beyond its expectation) holds what updating could not reach -
+    # degenerate parameter pairs, nonlinearity, the finer model's error
+    # beyond its fitted direction. A mechanism must explain a real share of
+    # it, not a sliver that any smooth signature would absorb.
+    excess = max(0.0, nominal_eval["full"] - problem.n_weighted)
+    allowance = MODEL_ERROR_SHARE * excess if update is not None else 0.0
+    noise_threshold, threshold = threshold, max(threshold, allowance)
 
     e_before = _structure_energy(r0, channels, sigma, width)
     hypotheses, fitted_series, residuals = [], {}, {}
@@ -602,17 +695,19 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         s = scored[c["name"]]
         main = c["main"]
         value = s["value"]
-        params = dict(parse_physics(c["name"]).parameters)
+        params = dict(make_mechanism(c["name"]).parameters)
         params[main] = value
         if s["value"] > 0:
             res = problem.residual(s["sim"], s["evaluation"]["nuisance"])
             frac = 1.0 - _structure_energy(res, channels, sigma, width) / e_before if e_before > 0 else 0.0
-            sig_match = signature_match(problem, r0, s["sim"] - nominal_sim)
+            sig_match = signature_match(problem, r0, s["sim"] - base_sim)
             residuals[c["name"]] = res
             fitted_series[c["name"]] = M - res
         else:
             frac, sig_match = 0.0, 0.0
         uncertainty = _uncertainty(s, main, kappa)
+        confounders = (nuisance_correlation(problem, s["sim"] - base_sim, update)
+                       if update is not None and s["value"] > 0 else [])
         rms_ch = {}
         for j, ch in enumerate(channels):
             before = r0[:, j]
@@ -634,6 +729,7 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
             "score": s["improvement"] / threshold,
             "significant": bool(s["improvement"] > threshold and value > 0),
             "signature_match": sig_match,
+            "nuisance_correlation": confounders,
             "explained_fraction": frac,
             "at_bound": s["at_bound"],
             "time_shift_s": float(s["evaluation"]["nuisance"][1]),
@@ -656,17 +752,31 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     # mean pose, e.g. rope held in a pulley): beyond calibration accuracy,
     # the geometry differs. Rope-length offsets were judged against the reel
     # table (check_maneuver).
-    b_ref = scored[after_name]["evaluation"]["nuisance"][0] if after_name else b0
+    b_ref = scored[after_name]["evaluation"]["nuisance"][0] if after_name else nominal_eval["nuisance"][0]
     offsets = {c: float(b) for c, b in zip(channels, b_ref)}
-    too_far = [c for c in channels if channel_kind(c) in OFFSET_LIMIT
-               and abs(offsets[c]) > OFFSET_LIMIT[channel_kind(c)]]
+    if update is not None:
+        # Offsets the updated parameters leave (offsets with their prior):
+        # beyond OFFSET_FINDING a finding; beyond OFFSET_LIMIT times
+        # DIFFERENT_RIG no parameter within tolerance comes near: another rig.
+        left = update["block"]["offsets_left"]
+        judged = {c: left[c] for c in channels if channel_kind(c) in OFFSET_LIMIT}
+        limit = {c: DIFFERENT_RIG * OFFSET_LIMIT[channel_kind(c)] for c in judged}
+    else:
+        judged = {c: offsets[c] for c in channels if channel_kind(c) in OFFSET_LIMIT}
+        limit = {c: OFFSET_LIMIT[channel_kind(c)] for c in judged}
+    too_far = [c for c in judged if abs(judged[c]) > limit[c]]
     offsets_note = None
     if too_far:
-        offsets_note = ("constant offsets beyond what calibration explains on " + ", ".join(
-            f"{c} ({offsets[c]:+.3g})" for c in too_far) + ": the rig geometry or the calibration differs from "
-            "the model, so no dynamic mechanism can be trusted")
+        offsets_note = ("constant offsets beyond what calibration " + ("and the rig's tolerances " if update else "")
+                        + "explain on " + ", ".join(f"{c} ({judged[c]:+.3g})" for c in too_far)
+                        + ": the rig geometry or the calibration differs from the model, so no dynamic mechanism "
+                        "can be trusted")
+    updates = _significant_updates(update)
     verdict, reason = decide(hypotheses, threshold, structured_before, structured_after,
-                             offsets_ok=not too_far, offsets_note=offsets_note)
+                             offsets_ok=not too_far, offsets_note=offsets_note, updates=updates)
+    if update is not None and update["block"]["unexplained_offsets"] and not too_far:
+        reason += ("; finding: constant offsets no parameter within tolerance explains on "
+                   + ", ".join(f"{c} ({left[c]:+.3g})" for c in update["block"]["unexplained_offsets"]))
     second = None
     if verdict in scored:
         note(f"fitting the other candidates on top of {verdict}")
@@ -680,23 +790,29 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
             reason += (f"; on top of it, {h['name']} ({k}={v:.3g}) also improves held-out data, {h['score']:.1f} "
                        "times what noise alone gives: a second mechanism may be at work")
     shown = verdict if verdict in fitted_series else after_name
-    decay = _free_decay_section(time, channels, M, M - r0, fitted_series.get(shown), shown, t_stop)
-    metrics = _before_after_metrics(time, channels, M, M - r0, fitted_series.get(shown), shown, t_stop)
+    decay = _free_decay_section(time, channels, M, M - r_nominal, fitted_series.get(shown), shown, t_stop,
+                                updated=M - r0 if update is not None else None)
+    metrics = _before_after_metrics(time, channels, M, M - r_nominal, fitted_series.get(shown), shown, t_stop)
 
     doc = {
         "schema": SCHEMA,
         "verdict": verdict,
         "reason": reason,
-        "mismatch": structured_before[:MAX_MISMATCH_ENTRIES],
-        "mismatch_after": {"model": after_name or "nominal", "entries": structured_after[:MAX_MISMATCH_ENTRIES]},
+        "mismatch": [e for e in located_nominal if e["significant"]][:MAX_MISMATCH_ENTRIES],
+        "mismatch_updated": structured_before[:MAX_MISMATCH_ENTRIES],
+        "calibration": _calibration_doc(update, joint, nominal_ctx),
+        "model_error": model_error_block,
+        "mismatch_after": {"model": after_name or ("updated" if update else "nominal"),
+                           "entries": structured_after[:MAX_MISMATCH_ENTRIES]},
         "hypotheses": hypotheses,
         "second_mechanism": second,
         "skipped": skipped,
         "free_decay": decay,
         "metrics": metrics,
-        "null_test": {"threshold": threshold, "surrogate_quantile": q, "quantile": NULL_QUANTILE,
+        "null_test": {"threshold": threshold, "noise_threshold": noise_threshold, "surrogate_quantile": q, "quantile": NULL_QUANTILE,
                       "n_surrogates": NULL_SURROGATES, "min_improvement": MIN_IMPROVEMENT,
-                      "dispersion_kappa": kappa},
+                      "dispersion_kappa": kappa, "model_error_allowance": allowance,
+                      "excess_chi2_updated": excess, "model_error_share": MODEL_ERROR_SHARE},
         "channels": {c: {"noise": float(sigma[j]), "offset": offsets[c], "offset_nominal": float(b0[j]),
                          "structure_threshold": structure_threshold(c, sigma[j], width)}
                      for j, c in enumerate(channels)},
@@ -709,12 +825,40 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
                      "block_s": BLOCK_S, "lowpass_s": LOWPASS_S, "rate_hz": rate},
         "timing": {"seconds": _time.perf_counter() - started,
                    "simulations": 1 + sum(h["n_simulations"] for h in hypotheses)
-                   + (second["n_simulations"] if second else 0)},
+                   + (second["n_simulations"] if second else 0) + len(error_directions)
+                   + (update["n_simulations"] if update else 0)},
     }
-    nominal_shown = M - r0
     fitted = {name: fitted_series[name] for name in fitted_series}
-    return Diagnosis(doc=_clean(doc), time=time, channels=channels, measured=M, nominal=nominal_shown, fitted=fitted,
+    return Diagnosis(doc=_clean(doc), time=time, channels=channels, measured=M, nominal=M - r_nominal,
+                     updated=M - r0 if update is not None else None, fitted=fitted,
                      located={"before": _clean(located), "after": _clean(located_after)})
+
+
+def _calibration_doc(update, joint, ctx):
+    """The JSON ``calibration`` block, with the leading candidate's joint refit when one ran."""
+    if update is None:
+        return {"parameters": [], "method": "the rig states no tolerances: nothing updated"}
+    block = dict(update["block"])
+    if joint is not None:
+        block["joint_refit"] = {
+            "mechanism": joint["mechanism"].name,
+            "parameters": dict(joint["mechanism"].parameters),
+            "shift_in_tolerances": {p.name: float(x / p.tolerance) for p, x in zip(ctx["parameters"], joint["coords"])},
+            "history": joint["history"],
+            "n_simulations": joint["n_simulations"],
+        }
+    return block
+
+
+def _significant_updates(update, min_shift=2.0, most=4):
+    """The largest updates a lab would notice: identifiable, beyond one tolerance and ``min_shift`` posterior sd."""
+    if update is None:
+        return []
+    moved = [e for e in update["block"]["parameters"]
+             if e["identifiable"] and abs(e["shift_in_tolerances"]) > 1.0
+             and abs(e["coordinate"]) > min_shift * e["coordinate_sd"]]
+    moved.sort(key=lambda e: -abs(e["shift_in_tolerances"]))
+    return [e["description"] for e in moved[:most]]
 
 
 def _clean(obj):

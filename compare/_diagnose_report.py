@@ -96,8 +96,35 @@ def _summary_lines(doc):
                          f"peak {cell(b, 'peak_error'):>7} -> {cell(a, 'peak_error'):<7} "
                          f"SG-C {cell(b, 'sg_combined', 1):>6} -> {cell(a, 'sg_combined', 1):<6} "
                          f"ISO {cell(b, 'iso_rating', 1):>5} -> {cell(a, 'iso_rating', 1)}")
+    lines += _calibration_lines(doc)
     lines += ["", f"{doc['timing']['simulations']} simulations (discretization "
                   f"{doc['settings']['discretization']})"]
+    return lines
+
+
+def _calibration_lines(doc):
+    cal = doc.get("calibration") or {}
+    lines = ["", "Model updating within the rig's tolerances (shift in tolerances; identifiable = the recording "
+                 "at least halves the prior spread):"]
+    if not cal.get("parameters"):
+        lines.append(f"  none: {cal.get('method', 'no tolerances')}")
+    for e in cal.get("parameters", []):
+        lines.append(f"  {e['parameter']:<36} nominal {_f(e['nominal'], '.4g'):>9} -> {_f(e['estimate'], '.4g'):>9} "
+                     f"+- {_f(e['uncertainty'], '.2g'):>7} {e['unit']:<4} ({e['shift_in_tolerances']:+.2f} tol) "
+                     f"{'identifiable' if e['identifiable'] else 'not identifiable'}")
+    for pair in cal.get("degenerate_pairs", []):
+        lines.append(f"  moved only together: {pair['parameters'][0]} and {pair['parameters'][1]} "
+                     f"(correlation {pair['correlation']:+.2f})")
+    if cal.get("unexplained_offsets"):
+        lines.append("  offsets no parameter explains: " + ", ".join(cal["unexplained_offsets"]))
+    me = doc.get("model_error") or {}
+    for name in ("discretization", "time_step"):
+        e = me.get(name)
+        if not e or e.get("status") != "ok":
+            continue
+        worst = max(e["channels"].items(), key=lambda kv: kv[1]["rms_noise"])
+        lines.append(f"Model error, {name} ({' vs '.join(e['compared'])}): chi2 weight {e['chi2']:.3g}; largest on "
+                     f"{worst[0]}, {worst[1]['rms_noise']:.2f} x noise RMS")
     return lines
 
 
@@ -112,7 +139,7 @@ def _overlay_pages(pdf, diag):
     t_stop = doc["alignment"]["reels_stop"]
     for k in range(0, len(chans), 3):
         fig = Figure(figsize=PAGE_SIZE)
-        fig.suptitle(f"Before/after: nominal model and {best or 'no fitted mechanism'}", fontsize=11)
+        fig.suptitle(f"Before/after: nominal model, updated model and {best or 'no fitted mechanism'}", fontsize=11)
         grid = fig.add_gridspec(6, 1, height_ratios=[2, 1] * 3, hspace=0.45, left=0.1, right=0.96, top=0.94,
                                 bottom=0.05)
         for i, ch in enumerate(chans[k : k + 3]):
@@ -123,14 +150,19 @@ def _overlay_pages(pdf, diag):
             ax = fig.add_subplot(grid[2 * i])
             ax.plot(t, ps * diag.measured[:, j], color="0.55", lw=0.6, label="measured")
             ax.plot(t, ps * diag.nominal[:, j], color="tab:red", ls="--", lw=1.0, label="nominal")
+            if diag.updated is not None:
+                ax.plot(t, ps * diag.updated[:, j], color="tab:green", ls="-.", lw=1.0, label="updated")
             if fitted is not None:
                 ax.plot(t, ps * fitted[:, j], color="tab:blue", lw=1.0, label=best)
             ax.axvline(t_stop, color="k", lw=0.6, ls=":")
             ax.set_ylabel(f"{ch} ({pu})")
-            ax.legend(loc="upper right", ncol=3)
+            ax.legend(loc="upper right", ncol=4)
             ax2 = fig.add_subplot(grid[2 * i + 1], sharex=ax)
             before = low_pass(diag.measured[:, j] - diag.nominal[:, j], width)
             ax2.plot(t, rs * before, color="tab:red", lw=0.9, label="measured - nominal")
+            if diag.updated is not None:
+                mid = low_pass(diag.measured[:, j] - diag.updated[:, j], width)
+                ax2.plot(t, rs * mid, color="tab:green", lw=0.9, label="measured - updated")
             if fitted is not None:
                 after = low_pass(diag.measured[:, j] - fitted[:, j], width)
                 ax2.plot(t, rs * after, color="tab:blue", lw=0.9, label=f"measured - {best}")

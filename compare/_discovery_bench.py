@@ -42,9 +42,10 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from ..simulate import MECHANISMS, parse_physics, simulate
+from ..simulate import MECHANISMS, make_mechanism, simulate
 
-__all__ = ["MAGNITUDES", "LIMIT_CASES", "default_cases", "bench_discovery", "summary_lines", "bench_command"]
+__all__ = ["MAGNITUDES", "LIMIT_CASES", "default_cases", "realistic_cases", "bench_discovery", "summary_lines",
+           "bench_command"]
 
 MAGNITUDES = {
     "aero_drag": (0.12, 0.4, 1.6, 5.5),
@@ -75,7 +76,7 @@ def default_cases(quick=False, seed=0):
     cases. Seeds differ per case (cameras, wand path, every noise draw).
     """
     cases = []
-    for name in sorted(MECHANISMS):
+    for name in sorted(n for n in MECHANISMS if MECHANISMS[n].get("candidate", True)):
         entry = MECHANISMS[name]
         values = MAGNITUDES.get(name)
         if values is None:
@@ -89,22 +90,73 @@ def default_cases(quick=False, seed=0):
     return [(name, value, seed * 1000 + k) for k, (name, value) in enumerate(cases)]
 
 
-def _run_case(name, value, seed, workdir):
+def realistic_cases(seed=0, quick=False):
+    """The realistic blind cases: ``(truth, value, seed, "realistic")``.
+
+    Every case's truth rig is drawn within the rig's tolerances and
+    simulated at a finer discretization than the diagnosis uses
+    (``_truth_world``). In the menu: each candidate at its three stronger
+    ``MAGNITUDES``. No added mechanism: ``REALISTIC_NONE`` cases. Out of the
+    menu: material damping of every rope and chain ``OUT_OF_MENU`` times
+    the table value, and sheave bearing damping (a mechanism the simulator
+    has but the candidate list does not).
+    """
+    cases = []
+    for name in sorted(n for n in MECHANISMS if MECHANISMS[n].get("candidate", True)):
+        values = MAGNITUDES[name][1:]
+        cases += [(name, float(v)) for v in (values[::2] if quick else values)]
+    cases += [(n, float(v)) for n, v in (OUT_OF_MENU[1:] if quick else OUT_OF_MENU)]
+    cases += [(None, 0.0)] * (4 if quick else REALISTIC_NONE)
+    return [(name, value, seed * 1000 + 500 + k, "realistic") for k, (name, value) in enumerate(cases)]
+
+
+REALISTIC_NONE = 5
+OUT_OF_MENU = (("material_damping", 2.5), ("material_damping", 3.5), ("sheave_bearing_damping", 3e-3),
+               ("sheave_bearing_damping", 1e-2))
+# Finer than the diagnosis's baseline: the truth's own discretization.
+TRUTH_DISCRETIZATION = "medium"
+
+
+def _truth_world(name, value, seed):
+    """Truth rig, maneuver (with the drawn reel zeros), discretization, physics and drawn coordinates."""
+    from ..simulate import apply_parameters, dig_maneuver, draw_parameters, load_rig
+
+    rig = load_rig()
+    params = rig.tolerances
+    coords = draw_parameters(params, np.random.default_rng(seed))
+    physics = []
+    if name == "material_damping":  # out of the menu: every rope's and chain's damping scaled
+        coords = np.array([math.log(value) if p.field == "viscous_damping" else x for p, x in zip(params, coords)])
+    elif name is not None:
+        physics = [make_mechanism(name, **{MECHANISMS[name]["main"]: value})]
+    truth_rig, truth_maneuver = apply_parameters(rig, dig_maneuver(), params, coords)
+    return truth_rig, truth_maneuver, TRUTH_DISCRETIZATION, physics, coords
+
+
+def _run_case(name, value, seed, world="nominal", workdir=None):
     """Make one blind session, diagnose it from its directory alone, score it here."""
     from ..capture import synthesize_session
     from ..capture._lab import default_lab_cameras
     from ..capture._session_io import write_session_dir
+    from ..simulate import dig_maneuver
     from ._diagnose import diagnose_path
 
     folder = os.path.join(workdir, f"case{seed}")
     started = time.perf_counter()
-    physics = [] if name is None else [parse_physics(f"{name}:{MECHANISMS[name]['main']}={value!r}")]
-    result = simulate(physics=physics, duration=10.0, rate_hz=200.0)
+    coords = None
+    if world == "realistic":
+        rig, maneuver, discretization, physics, coords = _truth_world(name, value, seed)
+        result = simulate(rig, maneuver, discretization, physics, duration=10.0, rate_hz=200.0)
+        recorded_maneuver = dig_maneuver()  # the user's reel table: the drum's zero error is hidden
+    else:
+        physics = [] if name is None else [make_mechanism(name, **{MECHANISMS[name]["main"]: value})]
+        result = simulate(physics=physics, duration=10.0, rate_hz=200.0)
+        recorded_maneuver = result.model.maneuver
     session, _ = synthesize_session(result, default_lab_cameras(seed), seed=seed,
                                     metadata={"generator": "dragline bench discovery"})
-    write_session_dir(folder, session, result.model.maneuver)
+    write_session_dir(folder, session, recorded_maneuver)
     made = time.perf_counter() - started
-    out = {"truth": name or "none", "value": value, "seed": seed, "synth_seconds": made}
+    out = {"truth": name or "none", "value": value, "seed": seed, "world": world, "synth_seconds": made}
     t0 = time.perf_counter()
     try:
         doc = diagnose_path(folder, workers=1, seed=seed).doc
@@ -115,6 +167,13 @@ def _run_case(name, value, seed, workdir):
         shutil.rmtree(folder, ignore_errors=True)
     out.update(verdict=doc["verdict"], reason=doc["reason"], diagnosis_seconds=time.perf_counter() - t0,
                load_seconds=doc["timing"].get("load_seconds"), simulations=doc["timing"]["simulations"])
+    in_menu = name is None or MECHANISMS.get(name, {}).get("candidate", True)
+    # Out of the menu the right answers are "unexplained" and "none" (with
+    # the update that names the changed parameter, for material damping).
+    out["out_of_menu"] = not in_menu
+    out["right"] = (doc["verdict"] == (name or "none")) if in_menu else doc["verdict"] in ("none", "unexplained")
+    if coords is not None:
+        out["calibration"] = _calibration_errors(doc, coords)
     second = doc.get("second_mechanism") or {}
     out["also"] = [h["name"] for h in second.get("candidates", []) if h["significant"]]
     hyp = {h["name"]: h for h in doc["hypotheses"]}
@@ -130,6 +189,22 @@ def _run_case(name, value, seed, workdir):
         top = doc["hypotheses"][0]
         out.update(top=top["name"], top_score=top["score"], top_improvement=top["improvement"],
                    threshold=doc["null_test"]["threshold"])
+    return out
+
+
+def _calibration_errors(doc, coords):
+    """Per rig parameter: truth and estimate in tolerances, identifiable or not."""
+    from ..simulate import load_rig
+
+    params = load_rig().tolerances
+    entries = {e["parameter"]: e for e in doc.get("calibration", {}).get("parameters", [])}
+    out = {}
+    for p, x in zip(params, coords):
+        e = entries.get(p.name)
+        if e is None:
+            continue
+        out[p.name] = {"truth": float(x / p.tolerance), "estimate": e["shift_in_tolerances"],
+                       "identifiable": e["identifiable"]}
     return out
 
 
@@ -171,13 +246,13 @@ def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, pr
     try:
         if workers <= 1:
             for c in cases:
-                results.append(_run_case(*c, workdir))
+                results.append(_run_case(*c, workdir=workdir))
                 if progress:
                     progress(_case_line(results[-1]))
         else:
             method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
             with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method)) as pool:
-                futures = [pool.submit(_run_case, *c, workdir) for c in cases]
+                futures = [pool.submit(_run_case, *c, workdir=workdir) for c in cases]
                 for f in futures:
                     results.append(f.result())
                     if progress:
@@ -185,12 +260,50 @@ def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, pr
     finally:
         if own:
             shutil.rmtree(workdir, ignore_errors=True)
-    return _summarise(results, time.perf_counter() - started, workers)
+    wall = time.perf_counter() - started
+    worlds = sorted({r.get("world", "nominal") for r in results})
+    if worlds == ["nominal"]:
+        return _summarise(results, wall, workers)
+    report = {"n_cases": len(results), "worlds": {}}
+    for w in worlds:
+        mine = [r for r in results if r.get("world", "nominal") == w]
+        report["worlds"][w] = _summarise(mine, wall, workers)
+        if w == "realistic":
+            report["worlds"][w].update(_realistic_figures(mine))
+    report["timing"] = {"wall_s": wall, "workers": workers}
+    return report
+
+
+def _realistic_figures(results):
+    """The realistic benchmark's headline figures (issue targets beside them)."""
+    oom = [r for r in results if r.get("out_of_menu")]
+    none = [r for r in results if r["truth"] == "none"]
+    named = [r for r in results if not r.get("out_of_menu") and r["truth"] != "none"]
+    rel = [abs(r["relative_error"]) for r in named if r["verdict"] == r["truth"] and r.get("relative_error") is not None]
+    cal = [abs(e["estimate"] - e["truth"]) for r in results for e in (r.get("calibration") or {}).values()
+           if e["identifiable"]]
+    damping_named = [r for r in oom if r["truth"] == "material_damping" and r["verdict"] == "none"
+                     and "viscous_damping" in r.get("reason", "")]
+    return {
+        "right_rate": float(np.mean([r["right"] for r in results])) if results else None,
+        "none_named_a_mechanism": sum(r["verdict"] in MECHANISMS for r in none),
+        "n_none": len(none),
+        "out_of_menu_wrong_name_rate": (float(np.mean([r["verdict"] in MECHANISMS for r in oom])) if oom else None),
+        "n_out_of_menu": len(oom),
+        "material_damping_named_in_update": len(damping_named),
+        "median_mechanism_relative_error": float(np.median(rel)) if rel else None,
+        "calibration_error_in_tolerances_median": float(np.median(cal)) if cal else None,
+        "calibration_error_in_tolerances_p90": float(np.quantile(cal, 0.9)) if cal else None,
+        "targets": {"right_rate": ">= 0.90", "none_named_a_mechanism": "0",
+                    "out_of_menu_wrong_name_rate": "<= 0.05", "median_mechanism_relative_error": "<= 0.25",
+                    "diagnosis_s": "<= 300"},
+    }
 
 
 def _case_line(r):
     fit = f" fitted {r['fitted']:.3g}" if r.get("fitted") is not None and r["verdict"] == r["truth"] else ""
-    return (f"{r['truth']}={r['value']:g} -> {r['verdict']}{fit} ({r['diagnosis_seconds']:.0f} s)")
+    world = " [realistic]" if r.get("world") == "realistic" else ""
+    return (f"{r['truth']}={r['value']:g}{world} -> {r['verdict']}{fit} ({r.get('diagnosis_seconds', 0):.0f} s)")
 
 
 def _summarise(results, wall, workers):
@@ -199,6 +312,7 @@ def _summarise(results, wall, workers):
     confusion = {t: {v: 0 for v in verdicts} for t in truths}
     for r in results:
         confusion[r["truth"]][r["verdict"]] += 1
+    right = [r.get("right", r["verdict"] == r["truth"]) for r in results]
     none_cases = [r for r in results if r["truth"] == "none"]
     named_wrong = [r for r in none_cases if r["verdict"] not in ("none", "unexplained", "error")]
     errors = {}
@@ -235,7 +349,7 @@ def _summarise(results, wall, workers):
         "n_cases": len(results),
         "cases": results,
         "confusion": confusion,
-        "accuracy": float(np.mean([r["verdict"] == r["truth"] for r in results])) if results else None,
+        "accuracy": float(np.mean(right)) if results else None,
         "false_positive_rate": len(named_wrong) / len(none_cases) if none_cases else None,
         "none_correct_rate": (float(np.mean([r["verdict"] == "none" for r in none_cases])) if none_cases else None),
         "parameter_error": errors,
@@ -257,6 +371,19 @@ def _summarise(results, wall, workers):
 
 def summary_lines(report):
     """Human-readable lines: the confusion matrix and the headline figures."""
+    if "worlds" in report:
+        lines = []
+        for w, sub in report["worlds"].items():
+            lines.append(f"== {w} cases ==")
+            lines += summary_lines(sub)
+            if w == "realistic":
+                lines.append(
+                    f"realistic: right {_fmt(sub['right_rate'])}; mechanism named on {sub['none_named_a_mechanism']} of "
+                    f"{sub['n_none']} no-mechanism cases; wrong names on out-of-menu cases "
+                    f"{_fmt(sub['out_of_menu_wrong_name_rate'])} of {sub['n_out_of_menu']}; median mechanism error "
+                    f"{_fmt(sub['median_mechanism_relative_error'])}; calibrated parameters off by a median "
+                    f"{_fmt(sub['calibration_error_in_tolerances_median'])} tolerances (identifiable ones)")
+        return lines
     conf = report["confusion"]
     cols = sorted({v for row in conf.values() for v in row})
     width = max([len(c) for c in cols] + [10])
@@ -292,7 +419,12 @@ def bench_command(args):
     """
     import sys
 
-    report = bench_discovery(cases=LIMIT_CASES if getattr(args, "limits", False) else None,
+    cases = None
+    if getattr(args, "limits", False):
+        cases = LIMIT_CASES
+    elif getattr(args, "realism", False):
+        cases = realistic_cases(args.seed, quick=bool(getattr(args, "quick", False)))
+    report = bench_discovery(cases=cases,
                              workers=getattr(args, "workers", 2) or 2, seed=args.seed,
                              quick=bool(getattr(args, "quick", False)),
                              progress=lambda line: print(line, file=sys.stderr))

@@ -71,7 +71,7 @@ from ..simulate import (
     MECHANISMS,
     SimulationError,
     assemble,
-    parse_physics,
+    make_mechanism,
     simulate,
     stable_time_step,
 )
@@ -124,10 +124,13 @@ MIN_IMPROVEMENT = 200.0
 BOUND_TOLERANCE = 0.05  # in ln p
 # Verdict policy (see ``decide``).
 EXPLAINED_MIN = 0.75
+# A mechanism whose signature correlates with a rig parameter's change
+# beyond this cannot be told apart from it.
+CONFOUNDED = 0.95
 
 
 def candidate_list(names=None):
-    """The candidate mechanisms: every one in ``MECHANISMS`` (or those named).
+    """The candidate mechanisms: every one in ``MECHANISMS`` marked a candidate (or those named).
 
     Returns
     -------
@@ -139,7 +142,7 @@ def candidate_list(names=None):
     ValueError
         A name that is not a mechanism.
     """
-    names = sorted(MECHANISMS) if names is None else list(names)
+    names = sorted(n for n in MECHANISMS if MECHANISMS[n].get("candidate", True)) if names is None else list(names)
     out = []
     for name in names:
         if name not in MECHANISMS:
@@ -154,7 +157,7 @@ def candidate_list(names=None):
 def cost_ratio(candidate, value, rig, maneuver, discretization, nominal_step):
     """How many times smaller the stable step is with the mechanism at ``value`` (>= 1)."""
     model = assemble(rig, maneuver, discretization,
-                     physics=[parse_physics(f"{candidate['name']}:{candidate['main']}={value!r}")])
+                     physics=[make_mechanism(candidate["name"], **{candidate["main"]: value})])
     return max(1.0, nominal_step / stable_time_step(model))
 
 
@@ -185,9 +188,9 @@ def affordable_range(candidate, rig, maneuver, discretization, max_cost=MAX_COST
 
 def unavailable_reason(candidate, rig, maneuver, discretization):
     """None when the simulator can run the candidate, else why not (one line)."""
-    spec = f"{candidate['name']}:{candidate['main']}={candidate['range'][1]!r}"
     try:
-        assemble(rig, maneuver, discretization, physics=[parse_physics(spec)])
+        assemble(rig, maneuver, discretization,
+                 physics=[make_mechanism(candidate["name"], **{candidate["main"]: candidate["range"][1]})])
     except (ValueError, NotImplementedError) as exc:
         return " ".join(str(exc).split())
     return None
@@ -206,9 +209,16 @@ class Problem:
         Noise level per channel.
     t_stop : float
         When the reels stop (s).
+    regressors : sequence of ndarray (n, c), optional
+        Further nuisance directions fitted linearly with every simulation
+        (``_updating``: the rig parameters' sensitivities and the model's
+        own numerical error), so that a mechanism is credited only with
+        what they cannot explain.
+    prior_precision, prior_mean : ndarray (k,), optional
+        A Gaussian prior on each regressor's coefficient (precision 0: free).
     """
 
-    def __init__(self, time, measured, sigma, t_stop):
+    def __init__(self, time, measured, sigma, t_stop, regressors=(), prior_precision=None, prior_mean=None):
         self.time = np.asarray(time, float)
         self.dt = float(self.time[1] - self.time[0])
         self.measured = np.asarray(measured, float)
@@ -221,27 +231,77 @@ class Problem:
         self.folds = {"A": ~fold, "B": fold, "all": np.ones_like(fold)}
         self.n_weighted = float((w[:, None] * self.valid).sum())
         self.m0 = np.where(self.valid, self.measured, 0.0)
+        self.t_stop = float(t_stop)
+        self.regressors = np.array([np.where(self.valid, x, 0.0) for x in regressors], float).reshape(
+            len(regressors), *self.measured.shape)
+        k = len(self.regressors)
+        self.prior_precision = np.zeros(k) if prior_precision is None else np.asarray(prior_precision, float)
+        self.prior_mean = np.zeros(k) if prior_mean is None else np.asarray(prior_mean, float)
+        # The regressors do not change between simulations: centre them and
+        # form their Gram matrix once per fold.
+        self._fold_regressors = {}
+        for name, mask in self.folds.items():
+            if not k:
+                break
+            W = self.W * mask[:, None]
+            sw = np.maximum(W.sum(0), 1e-300)
+            xc = self.regressors - (W * self.regressors).sum(1)[:, None, :] / sw
+            gram = np.einsum("inc,jnc->ij", xc * W, xc)
+            self._fold_regressors[name] = (xc, gram)
+
+    def with_regressors(self, regressors, prior_precision=None, prior_mean=None):
+        """The same problem with these nuisance regressors (a new object)."""
+        return Problem(self.time, self.measured, self.sigma, self.t_stop, regressors, prior_precision, prior_mean)
 
     def nuisance(self, sim, rate, fold):
-        """Least-squares offsets b (c,) and clock shift delta (s) on one fold."""
+        """Least-squares offsets b (c,), clock shift delta (s) and regressor coefficients a (k,) on one fold."""
         W = self.W * self.folds[fold][:, None]
         r = self.m0 - sim
         sw = np.maximum(W.sum(0), 1e-300)
         rc = r - (W * r).sum(0) / sw
         dc = rate - (W * rate).sum(0) / sw
+        if len(self.regressors):
+            return self._joint_nuisance(W, sw, r, rc, rate, dc, fold)
         den = float((W * dc * dc).sum())
         delta = float((W * rc * dc).sum()) / den if den > 0 else 0.0
         delta = float(np.clip(delta, -MAX_SHIFT, MAX_SHIFT))
         b = ((W * r).sum(0) - delta * (W * rate).sum(0)) / sw
-        return b, delta
+        return b, delta, np.zeros(0)
+
+    def _joint_nuisance(self, W, sw, r, rc, rate, dc, fold):
+        """Shift and regressors together (normal equations with the priors); offsets eliminated."""
+        xc, gram = self._fold_regressors[fold]
+        k = len(self.regressors)
+        A = np.empty((k + 1, k + 1))
+        A[0, 0] = float((W * dc * dc).sum())
+        A[0, 1:] = A[1:, 0] = np.einsum("inc,nc->i", xc, W * dc)
+        A[1:, 1:] = gram + np.diag(self.prior_precision)
+        g = np.empty(k + 1)
+        g[0] = float((W * rc * dc).sum())
+        g[1:] = np.einsum("inc,nc->i", xc, W * rc) + self.prior_precision * self.prior_mean
+        A[0, 0] = max(A[0, 0], 1e-300)
+        coef = np.linalg.lstsq(A, g, rcond=None)[0]
+        if abs(coef[0]) > MAX_SHIFT:  # the shift at its limit, the rest refitted
+            coef[0] = math.copysign(MAX_SHIFT, coef[0])
+            coef[1:] = np.linalg.lstsq(A[1:, 1:], g[1:] - A[1:, 0] * coef[0], rcond=None)[0]
+        delta, a = float(coef[0]), coef[1:]
+        fitted = delta * rate + np.einsum("i,inc->nc", a, self.regressors)
+        b = (W * (r - fitted)).sum(0) / sw
+        return b, delta, a
+
+    def _nuisance_part(self, rate, nuisance):
+        b, delta, a = nuisance
+        part = b[None, :] + delta * rate
+        if len(a):
+            part = part + np.einsum("i,inc->nc", a, self.regressors)
+        return part
 
     def residual(self, sim, nuisance=None, rate=None):
         """Measured minus simulated minus nuisance (SI), NaN where unmeasured."""
         sim = np.asarray(sim, float)
         rate = np.gradient(sim, self.dt, axis=0) if rate is None else rate
-        b, delta = self.nuisance(sim, rate, "all") if nuisance is None else nuisance
-        r = self.measured - sim - b[None, :] - delta * rate
-        return r
+        nuisance = self.nuisance(sim, rate, "all") if nuisance is None else nuisance
+        return self.measured - sim - self._nuisance_part(rate, nuisance)
 
     def evaluate(self, sim):
         """chi2 of one simulation (n, c): on all data and fold by fold.
@@ -249,20 +309,20 @@ class Problem:
         Returns
         -------
         dict
-            ``full`` (nuisance fitted on all), ``nuisance`` ((b, delta) on
-            all), and ``AA``, ``AB``, ``BB``, ``BA``: chi2 on the second
+            ``full`` (nuisance fitted on all), ``nuisance`` ((b, delta, a)
+            on all), and ``AA``, ``AB``, ``BB``, ``BA``: chi2 on the second
             fold with the nuisance fitted on the first.
         """
         sim = np.asarray(sim, float)
         rate = np.gradient(sim, self.dt, axis=0)
         out = {}
         for fit in ("all", "A", "B"):
-            b, delta = self.nuisance(sim, rate, fit)
-            r = self.m0 - sim - b[None, :] - delta * rate
+            nuisance = self.nuisance(sim, rate, fit)
+            r = self.m0 - sim - self._nuisance_part(rate, nuisance)
             sq = self.W * r * r
             if fit == "all":
                 out["full"] = float(sq.sum())
-                out["nuisance"] = (b, delta)
+                out["nuisance"] = nuisance
                 continue
             for ev in ("A", "B"):
                 out[fit + ev] = float(sq[self.folds[ev]].sum())
@@ -289,7 +349,7 @@ def simulate_channels(name, main, value, ctx=None):
     c = _CTX if ctx is None else ctx
     physics = list(c.get("base_physics", ()))  # a mechanism already named (second round)
     if value != 0.0 and name is not None:
-        physics.append(parse_physics(f"{name}:{main}={value!r}"))
+        physics.append(make_mechanism(name, **{main: value}))
     try:
         res = simulate(c["rig"], c["maneuver"], c["discretization"], physics, duration=c["duration"],
                        rate_hz=c["rate_hz"], initial_state=c["initial_state"])
@@ -566,7 +626,8 @@ def signature_match(problem, nominal_residual, signature):
 
 # ---------------------------------------------------------------- decision
 
-def decide(hypotheses, threshold, structured_before, structured_after, offsets_ok=True, offsets_note=None):
+def decide(hypotheses, threshold, structured_before, structured_after, offsets_ok=True, offsets_note=None,
+           updates=()):
     """The verdict: a mechanism, "none" or "unexplained", and why.
 
     Parameters
@@ -583,6 +644,9 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
     offsets_ok : bool
         False when constant offsets say the rig geometry or calibration
         differs from the model.
+    updates : sequence of str
+        The parameter updates the recording supports (``_updating``),
+        named in a "none" verdict: the updated model explains the recording.
 
     Rules
     -----
@@ -590,11 +654,14 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
        differs; a dynamic mechanism cannot be trusted).
     2. No significant candidate: "none" when the nominal model leaves no
        structured mismatch, else "unexplained".
-    3. The best significant candidate at the upper end of its plausible
-       range: "unexplained" (the effect is larger than that mechanism
-       could plausibly give).
+    3. The best significant candidate at either end of its plausible
+       range, or at the end of what could be simulated: "unexplained" (the
+       effect is larger, or other, than that mechanism could plausibly give).
     4. The runner-up significant too, and the two held-out improvements
        closer than the threshold: "unexplained" (indistinguishable).
+    4b. The best candidate's signature correlates with a rig parameter's
+       sensitivity beyond ``CONFOUNDED``: "unexplained" (it cannot be told
+       apart from a parameter change within tolerance).
     5. A structured mismatch remains and the best explains less than
        ``EXPLAINED_MIN`` of the structured mismatch: "unexplained".
     6. Otherwise the best candidate.
@@ -617,17 +684,29 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
                 f"structured mismatch beyond noise ({len(structured_before)} channel windows, largest at "
                 f"{where(structured_before)}) that no candidate reduces more than noise alone would "
                 f"(held-out threshold {threshold:.1f})")
+        if updates:
+            return "none", (f"the updated model fits within measurement noise (updates: {'; '.join(updates)}): no "
+                            f"structured mismatch is left, and no candidate improves held-out data more than noise "
+                            f"alone would (threshold {threshold:.1f})")
         return "none", (f"the nominal model fits within measurement noise: no structured mismatch, and no "
                         f"candidate improves held-out data more than noise alone would (threshold {threshold:.1f})")
     best = sig[0]
-    if best["at_bound"] == "upper":
-        return "unexplained", (f"{best['name']} improves the fit only at the upper end of its plausible range "
+    if best["at_bound"]:
+        where_ = {"upper": "upper end of its plausible range", "lower": "lower end of its plausible range",
+                  "search_limit": "end of the range that could be simulated"}[best["at_bound"]]
+        return "unexplained", (f"{best['name']} improves the fit only at the {where_} "
                                f"({best['main_parameter']} = {best['parameters'][best['main_parameter']]:.3g}); "
-                               "the mismatch is larger than it can plausibly explain")
+                               "the mismatch is not what it can plausibly explain")
     if len(sig) > 1 and best["improvement"] - sig[1]["improvement"] < threshold:
         return "unexplained", (f"{best['name']} and {sig[1]['name']} explain the mismatch about equally well "
                                f"(held-out improvements {best['improvement']:.1f} and {sig[1]['improvement']:.1f}, "
                                f"closer than the noise threshold {threshold:.1f}); the data cannot tell them apart")
+    confounded = [e for e in best.get("nuisance_correlation") or () if abs(e["correlation"]) > CONFOUNDED]
+    if confounded:
+        e = confounded[0]
+        return "unexplained", (f"{best['name']} would explain the mismatch, but its signature is a change of "
+                               f"{e['parameter']} within the rig's tolerance (correlation {e['correlation']:+.2f}); "
+                               "the recording cannot tell the mechanism from that parameter")
     frac = best.get("explained_fraction")
     if structured_after and frac is not None and frac < EXPLAINED_MIN:
         return "unexplained", (f"{best['name']} is the best candidate but explains only {100 * frac:.0f} % of the "

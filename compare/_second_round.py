@@ -12,7 +12,7 @@ significant second one is reported beside it.
 
 from __future__ import annotations
 
-from ..simulate import parse_physics
+from ..simulate import make_mechanism
 from ._hypotheses import fit_candidates, null_threshold, score_candidate
 
 __all__ = ["second_round"]
@@ -45,7 +45,7 @@ def second_round(problem, ctx, candidates, named, base_sim, workers=2, seed=0, p
     """
     main = named["main_parameter"]
     value = named["parameters"][main]
-    base = [parse_physics(f"{named['name']}:{main}={value!r}")]
+    base = [make_mechanism(named["name"], **{main: value})]
     others = [c for c in candidates if c["name"] != named["name"]]
     given = {"name": named["name"], "parameters": {main: value}}
     if not others:

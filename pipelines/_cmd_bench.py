@@ -18,6 +18,9 @@ def add_parser(sub):
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--quick", action="store_true", help="discovery: the reduced case list")
     p.add_argument("--limits", action="store_true", help="discovery: cases at the detection limit")
+    p.add_argument("--realism", action="store_true",
+                   help="discovery: truth rigs drawn within the rig's tolerances, simulated finer than the "
+                        "diagnosis, with out-of-menu physics among the cases")
     p.add_argument("--workers", type=int, default=2, help="discovery: parallel processes")
 
 

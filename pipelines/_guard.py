@@ -63,8 +63,8 @@ def guard_outputs(inputs, files=(), folders=()):
         Naming the output and the input it would touch.
     """
     read = [(p, _real(p), _identity(p)) for p in inputs if p and p != "dig" and os.path.lexists(p)]
-    outputs = [(p, _real(p), False) for p in files if p] + [(p, _real(p), True) for p in folders if p]
-    for path, real, is_folder in outputs:
+    outputs = [(p, _real(p)) for p in (*files, *folders) if p]
+    for path, real in outputs:
         ident = _identity(path)
         for name, inp, inp_ident in read:
             if real == inp or (ident is not None and ident == inp_ident):
@@ -72,8 +72,8 @@ def guard_outputs(inputs, files=(), folders=()):
             if _inside(inp, real):
                 raise ValueError(f"{path}: holds the input {name}; an output folder never holds an input "
                                  "(choose another output name)")
-    for i, (a, real_a, _) in enumerate(outputs):
-        for b, real_b, b_folder in outputs[i + 1:]:
+    for i, (a, real_a) in enumerate(outputs):
+        for b, real_b in outputs[i + 1:]:
             if real_a == real_b:
                 raise ValueError(f"{a} and {b}: two outputs name the same path")
             if _inside(real_a, real_b) or _inside(real_b, real_a):

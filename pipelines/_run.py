@@ -26,6 +26,11 @@ from pathlib import Path
 # is written to OUT/truth, never into the session.
 BUILTIN_HIDDEN_PHYSICS = "pulley_friction:mu=0.02"
 BUILTIN_DURATION_S = 12.0  # 5.5 s of free decay after the reels stop at 6.5 s
+# The lab's rig is not the nominal model: its uncertain parameters are drawn
+# within the rig file's tolerances (seeded) and it is simulated finer than
+# the model the diagnosis uses, as a real rig's continuum ropes would be.
+BUILTIN_TRUTH_DISCRETIZATION = "medium"
+BUILTIN_RIG_SEED = 1000
 
 
 # Options a --config file may set, with their defaults (README: "Configuration").
@@ -245,17 +250,26 @@ def _builtin_session(tmp, seed, rig):
     from dragline.capture import synthesize_session, write_truth
     from dragline.capture._lab import default_lab_cameras
     from dragline.capture._session_io import write_session_dir
-    from dragline.simulate import dig_maneuver, parse_physics, simulate
+    import numpy as np
+
+    from dragline.simulate import apply_parameters, dig_maneuver, draw_parameters, parse_physics, simulate
 
     maneuver = dig_maneuver()
     hidden = [parse_physics(BUILTIN_HIDDEN_PHYSICS)]
-    truth_run = simulate(rig, maneuver, physics=hidden, duration=BUILTIN_DURATION_S, rate_hz=200.0)
+    coords = draw_parameters(rig.tolerances, np.random.default_rng(BUILTIN_RIG_SEED + seed))
+    lab_rig, lab_maneuver = apply_parameters(rig, maneuver, rig.tolerances, coords)
+    truth_run = simulate(lab_rig, lab_maneuver, BUILTIN_TRUTH_DISCRETIZATION, physics=hidden,
+                         duration=BUILTIN_DURATION_S, rate_hz=200.0)
     session, truth = synthesize_session(truth_run, default_lab_cameras(seed), seed=seed,
                                         metadata={"generator": "dragline run", "rig": rig.name})
     write_session_dir(tmp / "session", session, maneuver)
     (tmp / "truth").mkdir()
     write_truth(tmp / "truth", truth, {"physics": [{"name": m.name, "parameters": dict(m.parameters)} for m in hidden],
-                                       "seed": seed, "duration_s": BUILTIN_DURATION_S})
+                                       "seed": seed, "duration_s": BUILTIN_DURATION_S,
+                                       "discretization": BUILTIN_TRUTH_DISCRETIZATION,
+                                       "rig_parameters": [{"parameter": p.name, "nominal": p.nominal,
+                                                           "value": p.value(x), "shift_in_tolerances": x / p.tolerance}
+                                                          for p, x in zip(rig.tolerances, coords)]})
     return session, maneuver
 
 

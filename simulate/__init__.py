@@ -13,9 +13,10 @@ from ._kinematics import (
 from ._markers import body_marker_positions, marker_names, marker_positions
 from ._maneuver import Maneuver, dig_maneuver, read_maneuver_csv, write_maneuver_csv
 from ._model import Model, assemble
-from ._physics import MECHANISMS, Mechanism, mechanism_names, parse_physics
+from ._physics import MECHANISMS, Mechanism, make_mechanism, mechanism_names, parse_physics
 from ._rig import DISCRETIZATION_LEVELS, Rig, load_rig, rig_from_dict
 from ._simulate import SimulationError, SimulationResult, simulate
 from ._statics import Equilibrium, StaticsError, solve_statics
 from ._time_step import stable_time_step
+from ._tolerances import RigParameter, apply_parameters, draw_parameters
 from ._table import BODIES, BODY_QUANTITIES, ROPE_CHANNELS, trajectory_columns, write_trajectory_csv

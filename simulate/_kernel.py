@@ -223,6 +223,7 @@ def rhs(t, y, dy, m, work):
     body_cda = m[31]
     seg_cda = m[32]
     air_density = m[33]
+    ring_visc = m[45]
 
     P = part_seg.shape[0]
     E = el_seg.shape[0]
@@ -335,7 +336,7 @@ def rhs(t, y, dy, m, work):
         meanA = sumA[rg] / seg_nelA[s]
         meanB = sumB[rg] / (seg_nel[s] - seg_nelA[s])
         dy[o_ring + 2 * rg] = vs
-        dy[o_ring + 2 * rg + 1] = (meanA - meanB) / mass - relax_damping * vs
+        dy[o_ring + 2 * rg + 1] = (meanA - meanB - ring_visc[rg] * vs) / mass - relax_damping * vs
 
 
 @njit(cache=True, inline="always")

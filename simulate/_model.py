@@ -175,6 +175,7 @@ KERNEL_FIELDS = (
     "body_cda", "seg_cda", "air_density",
     "has_joints", "joint_a", "joint_b", "joint_seg", "seg_bend_c", "seg_link_mu",
     "ring_eA", "ring_eB", "ring_mu", "has_ring_friction", "seg_link_r",
+    "ring_visc",
 )  # fmt: skip
 
 
@@ -341,6 +342,7 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         "ring_mu": np.zeros(len(ring_seg)),
         "has_ring_friction": 0,
         "seg_link_r": np.zeros(len(seg_names)),
+        "ring_visc": np.zeros(len(ring_seg)),
     }
     model = Model(
         rig=rig,

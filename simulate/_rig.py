@@ -91,6 +91,7 @@ class Rig:
     fixed_points: dict
     discretization: dict
     source: str = ""
+    tolerances: tuple = ()  # RigParameter: what a lab knows only approximately (``_tolerances``)
 
     def particle_counts(self, discretization="baseline"):
         """Particles per rope segment.
@@ -242,7 +243,10 @@ def _rig_from_doc(doc, source):
         if min(spec.static_stiffness, spec.viscous_stiffness, spec.viscous_damping) <= 0:
             raise ValueError(f"{source}: rope {name!r} needs positive stiffness and damping")
         ropes[name] = spec
+    from ._tolerances import parse_tolerances
+
     return Rig(
+        tolerances=parse_tolerances(doc, bodies, ropes, fixed, source),
         name=doc.get("name", source),
         g=float(doc.get("g", 9.81)),
         bodies=bodies,

@@ -201,6 +201,7 @@ def simulate(
     dissipation=True,
     initial_state=None,
     max_speed=100.0,
+    statics_guess=None,
 ):
     """Simulate a maneuver from static equilibrium.
 
@@ -228,6 +229,10 @@ def simulate(
         Start here instead of at the static equilibrium.
     max_speed : float
         Any speed above this (m/s) is a blow-up.
+    statics_guess : ndarray, optional
+        Where the statics start (for example the equilibrium of a rig a few
+        percent different, same discretization): the relaxation then ends
+        almost at once and Newton polishes.
 
     Returns
     -------
@@ -250,7 +255,10 @@ def simulate(
         # Every mechanism acts only on motion (or is modelled so), so the
         # rest pose is the nominal model's; its statics are also cheaper.
         nominal = assemble(rig, maneuver, discretization, dissipation=dissipation) if physics else model
-        eq = solve_statics(nominal, t0)
+        guess = None
+        if statics_guess is not None and np.shape(statics_guess) == (nominal.n_state,):
+            guess = statics_guess
+        eq = solve_statics(nominal, t0, y0=guess)
         y0, residual = eq.state, eq.residual
     else:
         y0, residual = np.array(initial_state, float), float("nan")

@@ -1,0 +1,562 @@
+"""Model updating before blame, and the model's own error budget.
+
+A real rig is never its nominal model. Before any mechanism is blamed, the
+diagnosis updates the nominal parameters a lab knows only approximately
+(the rig file's ``[tolerances]``, ``simulate._tolerances``) to the
+recording, and measures how far the nominal model is from its own
+converged solution on the recording's maneuver (``docs/diagnosis.md``).
+
+Updating
+--------
+Each parameter ``k`` moves by a coordinate ``x_k`` (ln p for masses,
+stiffness and damping; metres for positions), with the lab's belief
+``x_k ~ N(0, tau_k^2)`` as prior. Sensitivities come first: one simulation
+per parameter, a finite difference over ``FD_FRACTION`` of its tolerance,
+in parallel; a parameter whose one-tolerance change moves the weighted
+residual by less than ``SCREEN`` stays nominal and is reported not
+identifiable. The active coordinates, one constant offset per channel
+(marker placement and calibration: prior ``OFFSET_PRIOR``, so a static
+offset goes to the parameters when they can make it within tolerance),
+the clock shift and the model-error amplitudes (below) are fitted jointly
+by Gauss-Newton on the chi2 of ``_hypotheses`` plus the priors, each step
+a bounded least-squares solve (no parameter beyond ``BOUND_TOLERANCES``),
+simulated, kept only if it lowers the objective (else half of it is
+tried), and the sensitivities recomputed at the new point, for at most
+``GN_ITERATIONS``. Uncertainties come from the posterior covariance,
+scaled by the residual's dispersion; a parameter is *identifiable* when
+the recording at least halves its prior standard deviation.
+
+Model error
+-----------
+The nominal model is simulated once more at the next finer discretization
+and once with half the time step. Their differences from the model are
+the directions in which its numerical error lies on this maneuver; they
+are reported (RMS per channel in noise units) and fitted as free nuisance
+regressors with every candidate, so a mismatch the finer model also shows
+is never credited to missing physics.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+from ..simulate import (
+    DISCRETIZATION_LEVELS,
+    SimulationError,
+    StaticsError,
+    apply_parameters,
+    simulate,
+)
+from ._compare import channel_kind
+from ._hypotheses import _init, _map, _pool
+
+__all__ = ["OFFSET_PRIOR", "update_model", "joint_refit", "model_error", "finer_discretization",
+           "nuisance_correlation"]
+
+# What a constant offset between a recorded channel and the model may
+# honestly be, with no parameter wrong (one standard deviation): marker
+# placement on a body and the calibration's origin (m, rad, m).
+OFFSET_PRIOR = {"position": 0.005, "angle": math.radians(1.0), "rope_length": 0.003}
+# Offsets left after updating beyond these are a finding: no parameter
+# within tolerance explains them (the old 10 mm / 2 deg gate, now applied
+# after updating).
+OFFSET_FINDING = {"position": 0.010, "angle": math.radians(2.0), "rope_length": 0.010}
+GN_ITERATIONS = 8
+GN_RTOL = 0.005
+# Updating stops once chi2 is within this factor of its noise expectation.
+AT_NOISE = 1.2
+# Finite-difference step, in tolerances.
+FD_FRACTION = 0.1
+# A parameter whose one-tolerance change moves the weighted residual by less
+# than this (sqrt chi2: three noise-level sigmas in quadrature) is not updated.
+SCREEN = 3.0
+MAX_SHIFT_PRIOR = 0.01  # s
+# The joint refit: parameter steps, then the mechanism's value within
+# exp(+-JOINT_SPAN) of its first fit, in at most JOINT_VALUE_EVALS simulations.
+JOINT_STEPS = 3
+JOINT_SPAN = 0.4
+JOINT_VALUE_EVALS = 5
+# Two parameters whose posterior correlation exceeds this are reported as a
+# pair the recording can move only together.
+DEGENERATE = 0.9
+# The model error's amplitude is free (a wide prior): the finer model's
+# difference is its direction, not its size (Richardson's factor depends on
+# the order of convergence).
+ERROR_AMPLITUDE_SD = 10.0
+# No parameter moves further than this many tolerances from nominal.
+BOUND_TOLERANCES = 3.0
+# Identifiable: the recording shrinks the prior standard deviation at least this much.
+IDENTIFIABLE_RATIO = 0.5
+
+def _channels_of(result, ctx):
+    t = np.asarray(result.time, float)
+    return np.column_stack([np.interp(ctx["time"], t, np.asarray(result.table[ch], float)) for ch in ctx["channels"]])
+
+
+def _rig_job(coords, discretization=None, dt_factor=None, guess=None):
+    """Channels of the rig with its parameters at ``coords`` (None when the simulation fails)."""
+    from ._hypotheses import _CTX as ctx
+
+    rig, maneuver = apply_parameters(ctx["rig"], ctx["maneuver"], ctx["parameters"], coords)
+    dt = None
+    if dt_factor is not None:
+        dt = ctx["nominal_dt"] * dt_factor
+    try:
+        res = simulate(rig, maneuver, discretization or ctx["discretization"], list(ctx.get("base_physics", ())),
+                       duration=ctx["duration"], rate_hz=ctx["rate_hz"], dt=dt,
+                       statics_guess=(ctx["initial_state"] if guess is None else guess)
+                       if discretization is None else None)
+    except (SimulationError, StaticsError, FloatingPointError):
+        return None, None
+    return _channels_of(res, ctx), res.states[0]
+
+
+def finer_discretization(rig, discretization):
+    """The next finer named level, or every count up by half for a custom one."""
+    if isinstance(discretization, str) and discretization in DISCRETIZATION_LEVELS:
+        i = DISCRETIZATION_LEVELS.index(discretization)
+        if i + 1 < len(DISCRETIZATION_LEVELS):
+            return DISCRETIZATION_LEVELS[i + 1]
+    counts = rig.particle_counts(discretization)
+    return {name: int(math.ceil(1.5 * n)) for name, n in counts.items()}
+
+
+def model_error(problem, ctx, nominal_sim, workers=2):
+    """The nominal model's numerical error on this maneuver.
+
+    Parameters
+    ----------
+    problem : Problem
+    ctx : dict
+        Simulation context (``rig``, ``maneuver``, ``discretization``,
+        ``duration``, ``rate_hz``, ``time``, ``channels``, ``nominal_dt``).
+    nominal_sim : ndarray (n, c)
+
+    Returns
+    -------
+    directions : list of ndarray (n, c)
+        Finer minus nominal simulation, for each estimate that ran.
+    block : dict
+        JSON-ready: per source (``discretization``, ``time_step``), what it
+        compared, its RMS per channel (SI and in noise units) and its chi2
+        weight (sum of weighted squares: what a candidate could gain by
+        absorbing it).
+    """
+    _init(ctx)
+    finer = finer_discretization(ctx["rig"], ctx["discretization"])
+    jobs = [(np.zeros(len(ctx["parameters"])), finer, None), (np.zeros(len(ctx["parameters"])), None, 0.5)]
+    pool = _pool(min(workers, os.cpu_count() or 1, len(jobs)), ctx)
+    try:
+        results = _map(pool, _rig_job, jobs)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    directions, block = [], {}
+    described = {"discretization": {"compared": [_level_name(ctx["discretization"]), _level_name(finer)]},
+                 "time_step": {"compared": [f"{ctx['nominal_dt']:.3g} s", f"{0.5 * ctx['nominal_dt']:.3g} s"]}}
+    for (name, entry), (sim, _) in zip(described.items(), results):
+        if sim is None:
+            entry["status"] = "failed"
+            block[name] = entry
+            continue
+        d = sim - nominal_sim
+        weighted = np.where(problem.valid, d, 0.0) ** 2 * problem.W
+        entry.update(status="ok", chi2=float(weighted.sum()), channels={
+            ch: {"rms": float(np.sqrt(np.mean(d[:, j] ** 2))),
+                 "rms_noise": float(np.sqrt(np.mean(d[:, j] ** 2)) / problem.sigma[j])}
+            for j, ch in enumerate(ctx["channels"])})
+        directions.append(d)
+        block[name] = entry
+    block["method"] = ("the nominal model against itself at the next finer discretization and at half the time "
+                       "step, on the recording's maneuver; both differences are fitted as free nuisance directions "
+                       "with every candidate")
+    return directions, block
+
+
+def _level_name(discretization):
+    return discretization if isinstance(discretization, str) else ",".join(f"{k}={v}" for k, v in discretization.items())
+
+
+def _design(problem, sim, sensitivities):
+    """Weighted design matrix: the sensitivities' columns, one offset per channel, the clock shift."""
+    sw = np.sqrt(problem.W)
+    n, c = sim.shape
+    rate = np.gradient(sim, problem.dt, axis=0)
+    cols = [np.where(problem.valid, s, 0.0) * sw for s in sensitivities]
+    for j in range(c):
+        e = np.zeros((n, c))
+        e[:, j] = sw[:, j]
+        cols.append(e)
+    cols.append(np.where(problem.valid, rate, 0.0) * sw)
+    return np.stack([col.ravel() for col in cols], axis=1)
+
+
+def _solve(problem, X, prior_var, prior_mean, residual, bounds=None):
+    """Least squares X a = r with the prior N(prior_mean, prior_var), within ``bounds``.
+
+    Returns
+    -------
+    a : ndarray
+    H_inv : ndarray
+        The inverse of the posterior's Hessian (the bounds ignored).
+    """
+    z = (np.where(problem.valid, residual, 0.0) * np.sqrt(problem.W)).ravel()
+    H = X.T @ X + np.diag(1.0 / prior_var)
+    H_inv = np.linalg.inv(H)
+    if bounds is None:
+        return H_inv @ (X.T @ z + prior_mean / prior_var), H_inv
+    # The normal equations as a small square system (the same minimiser),
+    # solved with the bounds: H = R^T R, so ||R a - R^-T g||^2 is the objective.
+    g = X.T @ z + prior_mean / prior_var
+    R = np.linalg.cholesky(H).T
+    target = np.linalg.solve(R.T, g)
+    return lsq_linear(R, target, bounds=bounds, method="bvls").x, H_inv
+
+
+def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, progress=None):
+    """Update the rig's uncertain parameters to the recording, within their tolerances.
+
+    Parameters
+    ----------
+    problem : Problem
+        The recording (without regressors).
+    ctx : dict
+        Simulation context with ``parameters`` (the rig's ``tolerances``).
+    nominal_sim : ndarray (n, c)
+        The nominal model's channels.
+    error_directions : sequence of ndarray (n, c)
+        The model's own numerical error (``model_error``), fitted with free
+        amplitudes beside the parameters so that no parameter is moved to
+        mimic it.
+    workers : int
+    progress : callable, optional
+
+    Returns
+    -------
+    dict
+        ``coords`` (k,), ``sim`` (n, c) the updated model's channels,
+        ``initial_state`` its equilibrium, ``rig`` and ``maneuver`` updated,
+        ``sensitivities`` (list of (n, c) per unit coordinate, at the
+        updated point for the active parameters), ``covariance`` (k, k) of
+        the coordinates, ``offsets`` (c,) left, ``block`` (the JSON
+        ``calibration`` block), ``n_simulations``.
+    """
+    note = progress or (lambda msg: None)
+    params = list(ctx["parameters"])
+    k, c = len(params), len(ctx["channels"])
+    tol = np.array([p.tolerance for p in params])
+    _init(ctx)
+    pool = _pool(min(workers, os.cpu_count() or 1), ctx)
+    try:
+        coords, sim, state = np.zeros(k), nominal_sim, ctx["initial_state"]
+        sens, failed = _sensitivities(pool, coords, np.arange(k), tol, sim, state, [None] * k)
+        n_sims = k
+        # Sensitivities first: a parameter whose one-tolerance change moves
+        # the weighted residual by less than SCREEN (chi2) is left nominal.
+        strength = np.array([math.sqrt(float((problem.W * np.where(problem.valid, s_ * t, 0.0) ** 2).sum()))
+                             for s_, t in zip(sens, tol)])
+        active = np.flatnonzero(strength >= SCREEN)
+        note(f"sensitivities of {k} rig parameters done; {len(active)} move the recording")
+        offset_sd = np.array([OFFSET_PRIOR.get(channel_kind(ch), 0.005) for ch in ctx["channels"]])
+        errs = list(error_directions)
+        err_var = np.full(len(errs), ERROR_AMPLITUDE_SD**2)
+        best_obj, best_chi2, nuis, _ = _objective_at(problem, sim, coords, tol, offset_sd, errs)
+        history = [{"iteration": 0, "objective": best_obj, "chi2": best_chi2}]
+        H_inv = None
+        for it in range(1, GN_ITERATIONS + 1):
+            if best_chi2 < AT_NOISE * problem.n_weighted:
+                break  # the model already fits within noise
+            X = _design(problem, sim, [sens[i] for i in active] + errs)
+            prior_var = np.r_[tol[active] ** 2, err_var, offset_sd**2, MAX_SHIFT_PRIOR**2]
+            lo = np.r_[-BOUND_TOLERANCES * tol[active] - coords[active], np.full(len(errs) + c + 1, -np.inf)]
+            hi = np.r_[BOUND_TOLERANCES * tol[active] - coords[active], np.full(len(errs) + c + 1, np.inf)]
+            a, H_inv = _solve(problem, X, prior_var, np.r_[-coords[active], np.zeros(len(errs) + c + 1)],
+                              problem.measured - sim, bounds=(lo, hi))
+            step = np.zeros(k)
+            step[active] = a[: len(active)]
+            accepted = False
+            for fraction in (1.0, 0.5):
+                trial = coords + fraction * step
+                trial_sim, trial_state = _map(pool, _rig_job, [(trial, None, None, state)])[0]
+                n_sims += 1
+                if trial_sim is None:
+                    continue
+                obj, chi2, trial_nuis, _ = _objective_at(problem, trial_sim, trial, tol, offset_sd, errs)
+                if obj < best_obj:
+                    accepted = True
+                    break
+            history.append({"iteration": it, "objective": obj if trial_sim is not None else None,
+                            "chi2": chi2 if trial_sim is not None else None, "step_fraction": fraction,
+                            "accepted": accepted})
+            if not accepted:
+                break
+            gain = best_obj - obj
+            coords, sim, state, nuis, best_obj, best_chi2 = trial, trial_sim, trial_state, trial_nuis, obj, chi2
+            if gain < GN_RTOL * best_obj or it == GN_ITERATIONS or best_chi2 < AT_NOISE * problem.n_weighted:
+                break
+            sens, bad = _sensitivities(pool, coords, active, tol, sim, state, sens)
+            failed = sorted(set(failed) | set(bad))
+            n_sims += len(active)
+            note(f"updating: iteration {it}, chi2 {best_chi2:.4g}")
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    failed_names = [params[i].name for i in failed]
+    X = _design(problem, sim, [sens[i] for i in active] + errs)
+    _, H_inv = _solve(problem, X, np.r_[tol[active] ** 2, err_var, offset_sd**2, MAX_SHIFT_PRIOR**2],
+                      np.zeros(len(active) + len(errs) + c + 1), problem.measured - sim)
+    dispersion = max(1.0, best_chi2 / problem.n_weighted)
+    cov = np.diag(tol**2).astype(float)  # a screened-out parameter keeps its prior
+    idx = np.ix_(active, active)
+    cov[idx] = H_inv[: len(active), : len(active)] * dispersion
+    information = np.ones(k)  # posterior / prior sd from the data alone (noise-level residual)
+    information[active] = np.sqrt(np.clip(np.diag(H_inv)[: len(active)], 0.0, None)) / tol[active]
+    rig, maneuver = apply_parameters(ctx["rig"], ctx["maneuver"], params, coords)
+    offsets = nuis[len(errs):len(errs) + c]
+    block = _calibration_block(params, coords, cov, information, strength, offsets, ctx["channels"], history,
+                               failed_names)
+    return {"coords": coords, "sim": sim, "initial_state": state, "rig": rig, "maneuver": maneuver,
+            "sensitivities": sens, "covariance": cov, "offsets": offsets, "block": block, "n_simulations": n_sims,
+            "active": active}
+
+
+def joint_refit(problem, ctx, update, mechanism, error_directions=()):
+    """The leading candidate and the rig parameters refitted together, nonlinearly.
+
+    Updating ran before any mechanism, so a parameter may have absorbed part
+    of a real mechanism's effect (material damping takes up some of a
+    friction's decay). With the mechanism in every simulation, Gauss-Newton
+    steps on the parameters (the updating's sensitivities, kept) let them
+    give it back; then the mechanism's main parameter is searched again on
+    top of the jointly updated rig.
+
+    Parameters
+    ----------
+    problem : Problem
+        The recording (without regressors).
+    ctx : dict
+        The nominal simulation context (``parameters``: the tolerances).
+    update : dict
+        ``update_model``'s result.
+    mechanism : Mechanism
+        The candidate at its fitted value.
+    error_directions : sequence of ndarray (n, c)
+
+    Returns
+    -------
+    dict
+        ``coords``, ``mechanism`` (refitted), ``sim`` (n, c), ``rig``,
+        ``maneuver``, ``initial_state``, ``n_simulations``, ``history``.
+    """
+    from ..simulate import make_mechanism
+    from ._hypotheses import simulate_channels
+
+    params = list(ctx["parameters"])
+    c = len(ctx["channels"])
+    tol = np.array([p.tolerance for p in params])
+    active = update["active"]
+    sens = update["sensitivities"]
+    errs = list(error_directions)
+    err_var = np.full(len(errs), ERROR_AMPLITUDE_SD**2)
+    offset_sd = np.array([OFFSET_PRIOR.get(channel_kind(ch), 0.005) for ch in ctx["channels"]])
+    job_ctx = dict(ctx, base_physics=[mechanism])
+    _init(job_ctx)
+    coords, state = update["coords"].copy(), update["initial_state"]
+    sim, _ = _rig_job(coords, None, None, state)
+    n_sims = 1
+    if sim is None:
+        return None
+    best_obj, best_chi2, _, _ = _objective_at(problem, sim, coords, tol, offset_sd, errs)
+    history = [{"step": "start", "chi2": best_chi2}]
+    for _ in range(JOINT_STEPS):
+        X = _design(problem, sim, [sens[i] for i in active] + errs)
+        prior_var = np.r_[tol[active] ** 2, err_var, offset_sd**2, MAX_SHIFT_PRIOR**2]
+        lo = np.r_[-BOUND_TOLERANCES * tol[active] - coords[active], np.full(len(errs) + c + 1, -np.inf)]
+        hi = np.r_[BOUND_TOLERANCES * tol[active] - coords[active], np.full(len(errs) + c + 1, np.inf)]
+        a, _ = _solve(problem, X, prior_var, np.r_[-coords[active], np.zeros(len(errs) + c + 1)],
+                      problem.measured - sim, bounds=(lo, hi))
+        trial = coords.copy()
+        trial[active] += a[: len(active)]
+        trial_sim, trial_state = _rig_job(trial, None, None, state)
+        n_sims += 1
+        if trial_sim is None:
+            break
+        obj, chi2, _, _ = _objective_at(problem, trial_sim, trial, tol, offset_sd, errs)
+        history.append({"step": "parameters", "chi2": chi2, "accepted": obj < best_obj})
+        if obj >= best_obj:
+            break
+        coords, sim, state, best_obj, best_chi2 = trial, trial_sim, trial_state, obj, chi2
+    rig, maneuver = apply_parameters(ctx["rig"], ctx["maneuver"], params, coords)
+    main = _main_of(mechanism)
+    value0 = float(mechanism.parameters[main])
+    sim_ctx = dict(ctx, rig=rig, maneuver=maneuver, initial_state=state, base_physics=())
+    tried = {value0: (best_obj, sim)}
+
+    def objective(x):
+        nonlocal n_sims
+        v = float(math.exp(x))
+        s_ = simulate_channels(mechanism.name, main, v, sim_ctx)
+        n_sims += 1
+        if s_ is None:
+            return 1e300
+        obj = _objective_at(problem, s_, coords, tol, offset_sd, errs)[0]
+        tried[v] = (obj, s_)
+        return obj
+
+    from scipy.optimize import minimize_scalar
+
+    x0 = math.log(value0)
+    minimize_scalar(objective, bounds=(x0 - JOINT_SPAN, x0 + JOINT_SPAN), method="bounded",
+                    options={"xatol": 0.02, "maxiter": JOINT_VALUE_EVALS})
+    value = min(tried, key=lambda v: tried[v][0])
+    history.append({"step": mechanism.name, "value": value, "objective": tried[value][0]})
+    return {"coords": coords, "mechanism": make_mechanism(mechanism.name, **{main: value}), "sim": tried[value][1],
+            "rig": rig, "maneuver": maneuver, "initial_state": state, "n_simulations": n_sims, "history": history}
+
+
+def _main_of(mechanism):
+    from ..simulate import MECHANISMS
+
+    return MECHANISMS[mechanism.name]["main"]
+
+
+def _sensitivities(pool, coords, which, tol, sim, state, previous):
+    """Finite differences over FD_FRACTION tolerances, for the parameters ``which``, in parallel."""
+    jobs = []
+    for i in which:
+        x = coords.copy()
+        x[i] += FD_FRACTION * tol[i]
+        jobs.append((x, None, None, state))
+    out = list(previous)
+    failed = []
+    for i, (s_, _) in zip(which, _map(pool, _rig_job, jobs)):
+        if s_ is None:
+            failed.append(int(i))
+            out[i] = np.zeros_like(sim)
+        else:
+            out[i] = (s_ - sim) / (FD_FRACTION * tol[i])
+    return out, failed
+
+
+def _objective_at(problem, sim, coords, tol, offset_sd, errs):
+    """Objective (chi2 plus priors) at a simulation; error amplitudes, offsets and shift fitted with their priors.
+
+    Returns
+    -------
+    objective, chi2 : float
+    a : ndarray
+        Error amplitudes, offsets (c,), shift.
+    H_inv : ndarray
+    """
+    c, e = sim.shape[1], len(errs)
+    X = _design(problem, sim, errs)
+    a, H_inv = _solve(problem, X, np.r_[np.full(e, ERROR_AMPLITUDE_SD**2), offset_sd**2, MAX_SHIFT_PRIOR**2],
+                      np.zeros(e + c + 1), problem.measured - sim)
+    r = problem.measured - sim - _apply(X, a, problem, sim.shape)
+    z = np.where(problem.valid, r, 0.0)
+    chi2 = float((problem.W * z * z).sum())
+    prior = float(((coords / tol) ** 2).sum() + ((a[e:e + c] / offset_sd) ** 2).sum())
+    return chi2 + prior, chi2, a, H_inv
+
+
+def nuisance_correlation(problem, signature, update, most=3):
+    """How far a mechanism's signature looks like a rig parameter's change.
+
+    Parameters
+    ----------
+    problem : Problem
+    signature : ndarray (n, c)
+        The mechanism's fitted minus the updated model's simulation.
+    update : dict
+        ``update_model``'s result.
+
+    Returns
+    -------
+    list of dict
+        The ``most`` largest |cosines| between the signature and each
+        parameter's sensitivity, in the chi2 metric with per-channel offsets
+        removed: ``parameter``, ``correlation``. 1 means the recording
+        cannot tell the mechanism from that parameter change.
+    """
+    W = problem.W
+    sw = np.maximum(W.sum(0), 1e-300)
+
+    def centred(x):
+        x = np.where(problem.valid, x, 0.0)
+        return (x - (W * x).sum(0) / sw) * np.sqrt(W)
+
+    g = centred(signature)
+    gn = math.sqrt(float((g * g).sum()))
+    out = []
+    for p, s in zip(update["block"]["parameters"], update["sensitivities"]):
+        j = centred(s)
+        jn = math.sqrt(float((j * j).sum()))
+        if gn > 0 and jn > 0:
+            out.append({"parameter": p["parameter"], "correlation": float((g * j).sum()) / (gn * jn)})
+    out.sort(key=lambda e: -abs(e["correlation"]))
+    return out[:most]
+
+
+def _apply(X, a, problem, shape):
+    """Unweighted fitted part of X a (the columns are weighted by sqrt(W))."""
+    sw = np.sqrt(problem.W)
+    fitted = (X @ a).reshape(shape)
+    return np.where(sw > 0, fitted / np.where(sw > 0, sw, 1.0), 0.0)
+
+
+def _calibration_block(params, coords, cov, information, strength, offsets, channels, history, failed):
+    entries = []
+    for i, p in enumerate(params):
+        sd = float(math.sqrt(max(cov[i, i], 0.0)))
+        x = float(coords[i])
+        estimate = p.value(x)
+        if p.scale == "log":
+            unc = estimate * sd
+        else:
+            unc = sd
+        entries.append({
+            "parameter": p.name,
+            "unit": p.unit,
+            "nominal": p.nominal,
+            "estimate": estimate,
+            "uncertainty": unc,
+            "tolerance": p.tolerance if p.scale == "linear" else p.nominal * (math.exp(p.tolerance) - 1.0),
+            "coordinate": x,
+            "coordinate_sd": sd,
+            "coordinate_scale": "ln p" if p.scale == "log" else p.unit,
+            "shift_in_tolerances": x / p.tolerance,
+            "posterior_over_prior": float(information[i]),
+            "sensitivity": float(strength[i]),
+            "identifiable": bool(information[i] < IDENTIFIABLE_RATIO and p.name not in failed),
+            "at_bound": bool(abs(x) >= BOUND_TOLERANCES * p.tolerance * (1 - 1e-6)),
+            "description": p.describe(x),
+        })
+    sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
+    corr = cov / np.outer(sd, sd)
+    pairs = [{"parameters": [params[i].name, params[j].name], "correlation": float(corr[i, j])}
+             for i in range(len(params)) for j in range(i + 1, len(params))
+             if abs(corr[i, j]) > DEGENERATE and information[i] < 1.0 and information[j] < 1.0]
+    left = {}
+    findings = []
+    for j, ch in enumerate(channels):
+        kind = channel_kind(ch)
+        left[ch] = float(offsets[j])
+        lim = OFFSET_FINDING.get(kind)
+        if lim is not None and abs(offsets[j]) > lim:
+            findings.append(ch)
+    return {
+        "parameters": entries,
+        "degenerate_pairs": pairs,
+        "offsets_left": left,
+        "unexplained_offsets": findings,
+        "iterations": history,
+        "failed_sensitivities": failed,
+        "method": ("bounded-by-prior Gauss-Newton (chord) over the rig file's tolerances: sensitivities by "
+                   "finite differences over one tolerance, parameters, per-channel offsets (prior "
+                   f"{OFFSET_PRIOR['position'] * 1000:g} mm, {math.degrees(OFFSET_PRIOR['angle']):g} deg) and the "
+                   "clock shift fitted jointly; identifiable when the data at least halve the prior spread"),
+    }

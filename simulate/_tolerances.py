@@ -1,0 +1,208 @@
+"""How well a lab knows its rig: one stated tolerance per nominal parameter.
+
+A real rig is never its nominal model: masses are weighed to a few percent,
+a rope's static stiffness is measured on a test stand, its material damping
+is "matched iteratively", the boom pulley is placed with a tape. The rig
+file's ``[tolerances]`` table states, for each parameter a lab knows only
+approximately, how far the truth may lie from the nominal value (one
+standard deviation of the lab's belief). The diagnosis updates the model
+within these tolerances before it blames missing physics
+(``docs/diagnosis.md``), and the realistic benchmark draws its truth rigs
+from them.
+
+A key names what it moves:
+
+- ``bodies.<body>.mass``, ``bodies.<body>.cg_x`` (or ``cg_y``, ``cg_z``)
+- ``ropes.<group>.<property>`` with ``<property>`` one of
+  ``static_stiffness``, ``viscous_stiffness``, ``viscous_damping``, and
+  ``<group>`` a rope name or a group of ``[tolerance_groups]`` (one rope
+  or chain type, every segment of it moved together)
+- ``fixed_points.<point>.x`` (or ``y``, ``z``)
+- ``reels.<hoist|drag>.zero``: an offset (m) added to the reel table's
+  length, as a miscounted drum would give
+
+and its value is a table with ``relative`` (a fraction of the nominal
+value), ``absolute`` (SI units of the parameter) or ``factor`` (the truth
+lies within nominal / factor .. nominal * factor, one standard deviation
+being ln(factor) in ln p: for quantities known only to their order).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["RigParameter", "parse_tolerances", "apply_parameters", "draw_parameters"]
+
+_ROPE_PROPERTIES = ("static_stiffness", "viscous_stiffness", "viscous_damping")
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+@dataclass(frozen=True)
+class RigParameter:
+    """One nominal parameter a lab knows only approximately.
+
+    Attributes
+    ----------
+    name : str
+        The ``[tolerances]`` key, e.g. ``ropes.chain.viscous_damping``.
+    kind : str
+        ``mass``, ``cg``, ``rope``, ``fixed_point`` or ``reel_zero``.
+    targets : tuple of str
+        The bodies, ropes, fixed points or reels it moves.
+    field : str
+        The property (``mass``, ``static_stiffness``, ...) or axis.
+    nominal : float
+        The nominal value (SI).
+    scale : str
+        ``log`` (the parameter is moved in ln p; ``tolerance`` is the
+        standard deviation of ln p) or ``linear`` (``tolerance`` in SI).
+    tolerance : float
+        One standard deviation of the lab's belief, in the parameter's
+        coordinate (ln p or SI).
+    unit : str
+    """
+
+    name: str
+    kind: str
+    targets: tuple
+    field: str
+    nominal: float
+    scale: str
+    tolerance: float
+    unit: str
+
+    def value(self, coordinate):
+        """The parameter's SI value at ``coordinate`` (the update's variable, 0 = nominal)."""
+        return self.nominal * math.exp(coordinate) if self.scale == "log" else self.nominal + coordinate
+
+    def describe(self, coordinate):
+        """One phrase: how far ``coordinate`` moves the parameter from nominal."""
+        if self.scale == "log":
+            return f"{self.name} {math.exp(coordinate):.2f}x the nominal value"
+        return f"{self.name} {coordinate * 1000:+.1f} mm" if self.unit == "m" else f"{self.name} {coordinate:+.3g} {self.unit}"
+
+
+def parse_tolerances(doc, bodies, ropes, fixed, source="rig"):
+    """The ``[tolerances]`` table of a rig document as ``RigParameter`` objects.
+
+    Parameters
+    ----------
+    doc : dict
+        The rig document (TOML layout).
+    bodies, ropes, fixed : dict
+        The rig's parsed bodies, ropes and fixed points.
+
+    Raises
+    ------
+    ValueError
+        An unknown key, body, rope, group, point or reel, or a tolerance that
+        is not one positive finite number.
+    """
+    groups = {k: tuple(v) for k, v in doc.get("tolerance_groups", {}).items()}
+    for g, members in groups.items():
+        unknown = [m for m in members if m not in ropes]
+        if unknown or not members:
+            raise ValueError(f"{source}: tolerance group {g!r} names unknown ropes {unknown}")
+    out = []
+    for key, spec in doc.get("tolerances", {}).items():
+        where = f"{source}: tolerances.{key}"
+        if not isinstance(spec, dict) or len(spec) != 1 or next(iter(spec)) not in ("relative", "absolute", "factor"):
+            raise ValueError(f"{where}: expected one of relative = ..., absolute = ... or factor = ...")
+        (how, amount), = spec.items()
+        if isinstance(amount, bool) or not isinstance(amount, (int, float)) or not math.isfinite(amount) or amount <= 0 \
+                or (how == "factor" and amount <= 1):
+            raise ValueError(f"{where}: {how} must be a positive finite number{' above 1' if how == 'factor' else ''}, "
+                             f"got {amount!r}")
+        parts = key.split(".")
+        if parts[0] == "bodies" and len(parts) == 3 and parts[1] in bodies and parts[2] in ("mass", "cg_x", "cg_y", "cg_z"):
+            body = bodies[parts[1]]
+            if parts[2] == "mass":
+                kind, fld, nominal, unit = "mass", "mass", body.mass, "kg"
+            else:
+                kind, fld, nominal, unit = "cg", parts[2][-1], float(body.cg_body[_AXES[parts[2][-1]]]), "m"
+            targets = (parts[1],)
+        elif parts[0] == "ropes" and len(parts) == 3 and parts[2] in _ROPE_PROPERTIES \
+                and (parts[1] in groups or parts[1] in ropes):
+            targets = groups.get(parts[1], (parts[1],))
+            values = {getattr(ropes[t], parts[2]) for t in targets}
+            if len(values) != 1:
+                raise ValueError(f"{where}: the ropes of group {parts[1]!r} differ in {parts[2]}")
+            kind, fld, nominal, unit = "rope", parts[2], float(values.pop()), "N" if "stiffness" in parts[2] else "N s"
+        elif parts[0] == "fixed_points" and len(parts) == 3 and parts[1] in fixed and parts[2] in _AXES:
+            kind, fld, nominal, unit, targets = "fixed_point", parts[2], float(fixed[parts[1]][_AXES[parts[2]]]), "m", (parts[1],)
+        elif parts[0] == "reels" and len(parts) == 3 and parts[1] in ("hoist", "drag") and parts[2] == "zero":
+            kind, fld, nominal, unit, targets = "reel_zero", "zero", 0.0, "m", (parts[1],)
+        else:
+            raise ValueError(f"{where}: unknown parameter (see docs/rig-file.md for the keys)")
+        if how == "absolute":
+            scale, tol = "linear", float(amount)
+        else:
+            if nominal <= 0:
+                raise ValueError(f"{where}: a {how} tolerance needs a positive nominal value, got {nominal!r}")
+            scale = "log"
+            tol = math.log(1.0 + amount) if how == "relative" else math.log(amount)
+        out.append(RigParameter(key, kind, targets, fld, float(nominal), scale, tol, unit))
+    return tuple(out)
+
+
+def apply_parameters(rig, maneuver, parameters, coordinates):
+    """A rig and maneuver with parameters moved from nominal.
+
+    Parameters
+    ----------
+    rig : Rig
+    maneuver : Maneuver
+    parameters : sequence of RigParameter
+    coordinates : sequence of float
+        Each parameter's coordinate (ln p - ln p_nominal, or SI offset).
+
+    Returns
+    -------
+    (Rig, Maneuver)
+        New objects; the inputs are not modified.
+    """
+    from ._maneuver import Maneuver
+
+    bodies, ropes, fixed = dict(rig.bodies), dict(rig.ropes), dict(rig.fixed_points)
+    hoist, drag = maneuver.hoist_length, maneuver.drag_length
+    for p, x in zip(parameters, coordinates):
+        x = float(x)
+        if x == 0.0:
+            continue
+        value = p.value(x)
+        for t in p.targets:
+            if p.kind == "mass":
+                b = bodies[t]
+                # Inertia scales with the mass (same shape, denser material).
+                bodies[t] = dataclasses.replace(b, mass=value, inertia=b.inertia * (value / p.nominal))
+            elif p.kind == "cg":
+                cg = bodies[t].cg_body.copy()
+                cg[_AXES[p.field]] = value
+                bodies[t] = dataclasses.replace(bodies[t], cg_body=cg)
+            elif p.kind == "rope":
+                ropes[t] = dataclasses.replace(ropes[t], **{p.field: value})
+            elif p.kind == "fixed_point":
+                xyz = fixed[t].copy()
+                xyz[_AXES[p.field]] = value
+                fixed[t] = xyz
+            elif t == "hoist":
+                hoist = hoist + value
+            else:
+                drag = drag + value
+    return (dataclasses.replace(rig, bodies=bodies, ropes=ropes, fixed_points=fixed),
+            Maneuver(maneuver.time, hoist, drag, dict(maneuver.points)))
+
+
+def draw_parameters(parameters, rng, spread=1.0, limit=2.0):
+    """Coordinates drawn from the lab's belief: normal, ``spread`` tolerances wide, cut at ``limit``.
+
+    Returns
+    -------
+    ndarray (k,)
+    """
+    z = np.clip(rng.normal(size=len(parameters)), -limit, limit)
+    return np.array([spread * p.tolerance * zi for p, zi in zip(parameters, z)])

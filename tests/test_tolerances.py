@@ -1,0 +1,117 @@
+"""The rig file's tolerances: parsed, applied without touching the nominal rig, felt by the physics."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from importlib import resources
+
+import numpy as np
+import pytest
+
+from dragline.simulate import (
+    apply_parameters,
+    dig_maneuver,
+    draw_parameters,
+    load_rig,
+    rig_from_dict,
+    simulate,
+)
+
+
+def _doc():
+    return tomllib.loads(resources.files("dragline.simulate").joinpath("data/rig.toml").read_text())
+
+
+def test_built_in_rig_states_a_tolerance_for_what_a_lab_knows_only_approximately(rig):
+    names = {p.name for p in rig.tolerances}
+    for body in ("bucket", "spreader_bar", "hoist_cluster", "drag_cluster"):
+        assert f"bodies.{body}.mass" in names
+    for group in ("wire_rope", "dump_rope", "chain"):
+        assert f"ropes.{group}.static_stiffness" in names and f"ropes.{group}.viscous_damping" in names
+    assert {"reels.hoist.zero", "reels.drag.zero", "fixed_points.boom_pulley.x"} <= names
+    chain = next(p for p in rig.tolerances if p.name == "ropes.chain.viscous_damping")
+    assert len(chain.targets) == 6 and chain.scale == "log"
+    assert chain.tolerance == pytest.approx(math.log(2.0))  # factor 2: one sd of ln p
+    mass = next(p for p in rig.tolerances if p.name == "bodies.bucket.mass")
+    assert mass.tolerance == pytest.approx(math.log(1.02)) and mass.nominal == rig.bodies["bucket"].mass
+
+
+@pytest.mark.parametrize("key, value, message", [
+    ("bodies.bucket.volume", {"relative": 0.1}, "unknown parameter"),
+    ("bodies.boom.mass", {"relative": 0.1}, "unknown parameter"),
+    ("ropes.wire_rope.static_stiffness", {"relative": -0.1}, "positive finite"),
+    ("ropes.wire_rope.static_stiffness", {"relative": float("inf")}, "positive finite"),
+    ("ropes.chain.viscous_damping", {"factor": 0.5}, "above 1"),
+    ("reels.hoist.zero", {"relative": 0.1}, "positive nominal"),
+    ("fixed_points.boom_pulley.x", {"absolute": True}, "positive finite"),
+    ("fixed_points.boom_pulley.x", {"absolute": 0.01, "relative": 0.1}, "expected one of"),
+])
+def test_a_bad_tolerance_is_refused_naming_its_key(key, value, message):
+    doc = _doc()
+    doc["tolerances"] = {key: value}
+    with pytest.raises(ValueError, match=message) as err:
+        rig_from_dict(doc, "my_rig.toml")
+    assert "my_rig.toml" in str(err.value) and key in str(err.value)
+
+
+def test_a_group_of_ropes_that_differ_is_refused():
+    doc = _doc()
+    doc["tolerance_groups"]["mixed"] = ["hoist_rope", "dump_rope"]
+    doc["tolerances"] = {"ropes.mixed.static_stiffness": {"relative": 0.1}}
+    with pytest.raises(ValueError, match="differ in static_stiffness"):
+        rig_from_dict(doc)
+
+
+def test_apply_moves_what_it_names_and_leaves_the_inputs_alone(rig):
+    maneuver = dig_maneuver()
+    params = rig.tolerances
+    coords = np.array([p.tolerance for p in params])
+    moved, moved_maneuver = apply_parameters(rig, maneuver, params, coords)
+    assert rig.bodies["bucket"].mass == load_rig().bodies["bucket"].mass  # the nominal rig is untouched
+    assert moved.bodies["bucket"].mass == pytest.approx(rig.bodies["bucket"].mass * 1.02)
+    # The inertia keeps its shape: it scales with the mass.
+    np.testing.assert_allclose(moved.bodies["bucket"].inertia, 1.02 * rig.bodies["bucket"].inertia, rtol=1e-12)
+    for rope in ("left_drag_chain", "right_upper_hoist_chain"):
+        assert moved.ropes[rope].viscous_damping == pytest.approx(2 * rig.ropes[rope].viscous_damping)
+    assert moved.ropes["hoist_rope"].static_stiffness == pytest.approx(1.15 * rig.ropes["hoist_rope"].static_stiffness)
+    np.testing.assert_allclose(moved.fixed_points["boom_pulley"] - rig.fixed_points["boom_pulley"], [0.005, 0, 0.005])
+    np.testing.assert_allclose(moved_maneuver.hoist_length - maneuver.hoist_length, 0.01)
+    np.testing.assert_allclose(moved_maneuver.drag_length - maneuver.drag_length, 0.01)
+    np.testing.assert_array_equal(maneuver.hoist_length, dig_maneuver().hoist_length)
+
+
+def test_draws_follow_the_tolerances_and_stop_at_the_limit(rig):
+    rng = np.random.default_rng(3)
+    draws = np.array([draw_parameters(rig.tolerances, rng) for _ in range(2000)])
+    tol = np.array([p.tolerance for p in rig.tolerances])
+    z = draws / tol
+    assert np.abs(z).max() <= 2.0 + 1e-12
+    # A standard normal clipped at c = 2 has variance 1 - 2Q(c) - 2 c phi(c) + 2 c^2 Q(c) = 0.9206.
+    q, phi = 0.5 * math.erfc(2 / math.sqrt(2)), math.exp(-2) / math.sqrt(2 * math.pi)
+    np.testing.assert_allclose(z.std(0), math.sqrt(1 - 2 * q - 4 * phi + 8 * q), atol=0.04)
+
+
+@pytest.fixture(scope="module")
+def static_pair(rig):
+    """The rig at rest, nominal and with the hoist reel's zero 10 mm out and the wire rope 10 % softer."""
+    maneuver = dig_maneuver()
+    params = [p for p in rig.tolerances if p.name in ("reels.hoist.zero", "ropes.wire_rope.static_stiffness")]
+    coords = [0.01 if p.kind == "reel_zero" else math.log(0.9) for p in params]
+    a = simulate(rig, maneuver, duration=0.05)
+    b = simulate(*apply_parameters(rig, maneuver, params, coords), duration=0.05)
+    return a.table.iloc[0], b.table.iloc[0]
+
+
+def test_the_reel_zero_lengthens_the_rope_the_reel_pays_out(static_pair):
+    nominal, moved = static_pair
+    assert moved["hoist_rope.reel_length"] - nominal["hoist_rope.reel_length"] == pytest.approx(0.01, abs=1e-12)
+
+
+def test_a_softer_rope_stretches_more_under_the_same_load(static_pair):
+    """Static stretch is T L / K: 10 % less stiffness, 1/0.9 the stretch (the tension barely changes)."""
+    nominal, moved = static_pair
+    stretch = nominal["hoist_rope.length"] - nominal["hoist_rope.reel_length"]
+    stretch_soft = moved["hoist_rope.length"] - moved["hoist_rope.reel_length"]
+    assert stretch > 0.05
+    assert stretch_soft / stretch == pytest.approx(1 / 0.9, rel=0.03)
