@@ -663,7 +663,8 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         if s["value"] > 0 and s["improvement"] > 0:
             note(f"refitting {lead['name']} and the rig parameters together")
             joint = joint_refit(plain_problem, nominal_ctx, update,
-                                make_mechanism(lead["name"], **{lead["main"]: s["value"]}), error_directions)
+                                make_mechanism(lead["name"], **{lead["main"]: s["value"]}), error_directions,
+                                workers=workers, progress=note)
         if joint is not None:
             value = float(joint["mechanism"].parameters[lead["main"]])
             points[lead["name"]].append((value, joint["sim"], problem.evaluate(joint["sim"])))

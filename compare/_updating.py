@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import lsq_linear
@@ -75,9 +76,8 @@ FD_FRACTION = 0.1
 # than this (sqrt chi2: three noise-level sigmas in quadrature) is not updated.
 SCREEN = 3.0
 MAX_SHIFT_PRIOR = 0.01  # s
-# The joint refit: parameter steps, then the mechanism's value within
+# The joint refit, after its parameter steps: the mechanism's value within
 # exp(+-JOINT_SPAN) of its first fit, in at most JOINT_VALUE_EVALS simulations.
-JOINT_STEPS = 3
 JOINT_SPAN = 0.4
 JOINT_VALUE_EVALS = 5
 # Two parameters whose posterior correlation exceeds this are reported as a
@@ -264,44 +264,12 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
         offset_sd = np.array([OFFSET_PRIOR.get(channel_kind(ch), 0.005) for ch in ctx["channels"]])
         errs = list(error_directions)
         err_var = np.full(len(errs), ERROR_AMPLITUDE_SD**2)
-        best_obj, best_chi2, nuis, _ = _objective_at(problem, sim, coords, tol, offset_sd, errs)
-        history = [{"iteration": 0, "objective": best_obj, "chi2": best_chi2}]
-        H_inv = None
-        for it in range(1, GN_ITERATIONS + 1):
-            if best_chi2 < AT_NOISE * problem.n_weighted:
-                break  # the model already fits within noise
-            X = _design(problem, sim, [sens[i] for i in active] + errs)
-            prior_var = np.r_[tol[active] ** 2, err_var, offset_sd**2, MAX_SHIFT_PRIOR**2]
-            lo = np.r_[-BOUND_TOLERANCES * tol[active] - coords[active], np.full(len(errs) + c + 1, -np.inf)]
-            hi = np.r_[BOUND_TOLERANCES * tol[active] - coords[active], np.full(len(errs) + c + 1, np.inf)]
-            a, H_inv = _solve(problem, X, prior_var, np.r_[-coords[active], np.zeros(len(errs) + c + 1)],
-                              problem.measured - sim, bounds=(lo, hi))
-            step = np.zeros(k)
-            step[active] = a[: len(active)]
-            accepted = False
-            for fraction in (1.0, 0.5):
-                trial = coords + fraction * step
-                trial_sim, trial_state = _map(pool, _rig_job, [(trial, None, None, state)])[0]
-                n_sims += 1
-                if trial_sim is None:
-                    continue
-                obj, chi2, trial_nuis, _ = _objective_at(problem, trial_sim, trial, tol, offset_sd, errs)
-                if obj < best_obj:
-                    accepted = True
-                    break
-            history.append({"iteration": it, "objective": obj if trial_sim is not None else None,
-                            "chi2": chi2 if trial_sim is not None else None, "step_fraction": fraction,
-                            "accepted": accepted})
-            if not accepted:
-                break
-            gain = best_obj - obj
-            coords, sim, state, nuis, best_obj, best_chi2 = trial, trial_sim, trial_state, trial_nuis, obj, chi2
-            if gain < GN_RTOL * best_obj or it == GN_ITERATIONS or best_chi2 < AT_NOISE * problem.n_weighted:
-                break
-            sens, bad = _sensitivities(pool, coords, active, tol, sim, state, sens)
-            failed = sorted(set(failed) | set(bad))
-            n_sims += len(active)
-            note(f"updating: iteration {it}, chi2 {best_chi2:.4g}")
+        fit = _gauss_newton(problem, pool, _Fit(coords, sim, state, sens), active, tol, offset_sd, errs,
+                            GN_ITERATIONS, lambda m: note(f"updating: {m}"))
+        coords, sim, state, sens, nuis = fit.coords, fit.sim, fit.state, fit.sens, fit.nuisance
+        best_chi2, history = fit.chi2, fit.history
+        failed = sorted(set(failed) | set(fit.failed))
+        n_sims += fit.n_sims
     finally:
         if pool is not None:
             pool.shutdown()
@@ -324,15 +292,17 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
             "active": active}
 
 
-def joint_refit(problem, ctx, update, mechanism, error_directions=()):
+def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2, progress=None):
     """The leading candidate and the rig parameters refitted together, nonlinearly.
 
-    Updating ran before any mechanism, so a parameter may have absorbed part
-    of a real mechanism's effect (material damping takes up some of a
-    friction's decay). With the mechanism in every simulation, Gauss-Newton
-    steps on the parameters (the updating's sensitivities, kept) let them
-    give it back; then the mechanism's main parameter is searched again on
-    top of the jointly updated rig.
+    Updating ran before any mechanism, so with a real mechanism at work the
+    parameters took up what they could of its effect (material damping
+    absorbs a friction's decay; masses and the boom point drift to their
+    bounds). With the mechanism in every simulation, Gauss-Newton on the
+    parameters starts again from the better of the nominal rig and the
+    updated one, the sensitivities recomputed at every accepted step; then
+    the mechanism's main parameter is searched again on top of the jointly
+    updated rig.
 
     Parameters
     ----------
@@ -345,56 +315,53 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=()):
     mechanism : Mechanism
         The candidate at its fitted value.
     error_directions : sequence of ndarray (n, c)
+    workers : int
+    progress : callable, optional
 
     Returns
     -------
-    dict
+    dict or None
         ``coords``, ``mechanism`` (refitted), ``sim`` (n, c), ``rig``,
-        ``maneuver``, ``initial_state``, ``n_simulations``, ``history``.
+        ``maneuver``, ``initial_state``, ``n_simulations``, ``history``;
+        None when the mechanism's simulation fails.
     """
+    from scipy.optimize import minimize_scalar
+
     from ..simulate import make_mechanism
     from ._hypotheses import simulate_channels
 
+    note = progress or (lambda msg: None)
     params = list(ctx["parameters"])
-    c = len(ctx["channels"])
     tol = np.array([p.tolerance for p in params])
     active = update["active"]
-    sens = update["sensitivities"]
     errs = list(error_directions)
-    err_var = np.full(len(errs), ERROR_AMPLITUDE_SD**2)
     offset_sd = np.array([OFFSET_PRIOR.get(channel_kind(ch), 0.005) for ch in ctx["channels"]])
     job_ctx = dict(ctx, base_physics=[mechanism])
     _init(job_ctx)
-    coords, state = update["coords"].copy(), update["initial_state"]
-    sim, _ = _rig_job(coords, None, None, state)
-    n_sims = 1
-    if sim is None:
-        return None
-    best_obj, best_chi2, _, _ = _objective_at(problem, sim, coords, tol, offset_sd, errs)
-    history = [{"step": "start", "chi2": best_chi2}]
-    for _ in range(JOINT_STEPS):
-        X = _design(problem, sim, [sens[i] for i in active] + errs)
-        prior_var = np.r_[tol[active] ** 2, err_var, offset_sd**2, MAX_SHIFT_PRIOR**2]
-        lo = np.r_[-BOUND_TOLERANCES * tol[active] - coords[active], np.full(len(errs) + c + 1, -np.inf)]
-        hi = np.r_[BOUND_TOLERANCES * tol[active] - coords[active], np.full(len(errs) + c + 1, np.inf)]
-        a, _ = _solve(problem, X, prior_var, np.r_[-coords[active], np.zeros(len(errs) + c + 1)],
-                      problem.measured - sim, bounds=(lo, hi))
-        trial = coords.copy()
-        trial[active] += a[: len(active)]
-        trial_sim, trial_state = _rig_job(trial, None, None, state)
-        n_sims += 1
-        if trial_sim is None:
-            break
-        obj, chi2, _, _ = _objective_at(problem, trial_sim, trial, tol, offset_sd, errs)
-        history.append({"step": "parameters", "chi2": chi2, "accepted": obj < best_obj})
-        if obj >= best_obj:
-            break
-        coords, sim, state, best_obj, best_chi2 = trial, trial_sim, trial_state, obj, chi2
+    pool = _pool(min(workers, os.cpu_count() or 1), job_ctx)
+    try:
+        starts = _map(pool, _rig_job, [(np.zeros(len(params)), None, None, ctx["initial_state"]),
+                                       (update["coords"], None, None, update["initial_state"])])
+        n_sims = 2
+        options = [(_objective_at(problem, sim, x, tol, offset_sd, errs)[0], x, sim, st)
+                   for x, (sim, st) in zip((np.zeros(len(params)), update["coords"]), starts) if sim is not None]
+        if not options:
+            return None
+        _, coords, sim, state = min(options, key=lambda o: o[0])
+        sens, _ = _sensitivities(pool, coords, active, tol, sim, state, list(update["sensitivities"]))
+        n_sims += len(active)
+        fit = _gauss_newton(problem, pool, _Fit(coords, sim, state, sens), active, tol, offset_sd, errs,
+                            GN_ITERATIONS, lambda m: note(f"joint refit with {mechanism.name}: {m}"))
+        n_sims += fit.n_sims
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    coords, state = fit.coords, fit.state
     rig, maneuver = apply_parameters(ctx["rig"], ctx["maneuver"], params, coords)
     main = _main_of(mechanism)
     value0 = float(mechanism.parameters[main])
     sim_ctx = dict(ctx, rig=rig, maneuver=maneuver, initial_state=state, base_physics=())
-    tried = {value0: (best_obj, sim)}
+    tried = {value0: (fit.objective, fit.sim)}
 
     def objective(x):
         nonlocal n_sims
@@ -407,21 +374,90 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=()):
         tried[v] = (obj, s_)
         return obj
 
-    from scipy.optimize import minimize_scalar
-
     x0 = math.log(value0)
     minimize_scalar(objective, bounds=(x0 - JOINT_SPAN, x0 + JOINT_SPAN), method="bounded",
                     options={"xatol": 0.02, "maxiter": JOINT_VALUE_EVALS})
     value = min(tried, key=lambda v: tried[v][0])
-    history.append({"step": mechanism.name, "value": value, "objective": tried[value][0]})
+    history = fit.history + [{"step": mechanism.name, "value": value, "objective": tried[value][0]}]
     return {"coords": coords, "mechanism": make_mechanism(mechanism.name, **{main: value}), "sim": tried[value][1],
             "rig": rig, "maneuver": maneuver, "initial_state": state, "n_simulations": n_sims, "history": history}
+
+
+@dataclass
+class _Fit:
+    """Where a Gauss-Newton run stands."""
+
+    coords: np.ndarray
+    sim: np.ndarray
+    state: np.ndarray
+    sens: list
+    nuisance: np.ndarray | None = None
+    objective: float = math.inf
+    chi2: float = math.inf
+    history: list = field(default_factory=list)
+    failed: list = field(default_factory=list)
+    n_sims: int = 0
+
+
+def _gauss_newton(problem, pool, fit, active, tol, offset_sd, errs, iterations, note):
+    """Gauss-Newton on the active coordinates from ``fit``: bounded steps, halved once, sensitivities renewed.
+
+    Each step is simulated and kept only if it lowers the objective (chi2
+    plus priors); it stops when the gain falls below ``GN_RTOL`` of the
+    objective, when chi2 reaches ``AT_NOISE`` times its noise expectation,
+    or after ``iterations`` steps.
+    """
+    fit.objective, fit.chi2, fit.nuisance, _ = _objective_at(problem, fit.sim, fit.coords, tol, offset_sd, errs)
+    fit.history = [{"iteration": 0, "objective": fit.objective, "chi2": fit.chi2}]
+    for it in range(1, iterations + 1):
+        if fit.chi2 < AT_NOISE * problem.n_weighted:
+            break  # the model already fits within noise
+        step = _parameter_step(problem, fit.sim, fit.sens, active, errs, fit.coords, tol, offset_sd)
+        accepted, obj, chi2, fraction = False, None, None, 1.0
+        for fraction in (1.0, 0.5):
+            trial = fit.coords + fraction * step
+            trial_sim, trial_state = _map(pool, _rig_job, [(trial, None, None, fit.state)])[0]
+            fit.n_sims += 1
+            if trial_sim is None:
+                continue
+            obj, chi2, trial_nuis, _ = _objective_at(problem, trial_sim, trial, tol, offset_sd, errs)
+            if obj < fit.objective:
+                accepted = True
+                break
+        fit.history.append({"iteration": it, "objective": obj, "chi2": chi2, "step_fraction": fraction,
+                            "accepted": accepted})
+        if not accepted:
+            break
+        gain = fit.objective - obj
+        fit.coords, fit.sim, fit.state, fit.nuisance = trial, trial_sim, trial_state, trial_nuis
+        fit.objective, fit.chi2 = obj, chi2
+        if gain < GN_RTOL * obj or it == iterations or chi2 < AT_NOISE * problem.n_weighted:
+            break
+        fit.sens, bad = _sensitivities(pool, fit.coords, active, tol, fit.sim, fit.state, fit.sens)
+        fit.failed = sorted(set(fit.failed) | set(bad))
+        fit.n_sims += len(active)
+        note(f"iteration {it}, chi2 {chi2:.4g}")
+    return fit
 
 
 def _main_of(mechanism):
     from ..simulate import MECHANISMS
 
     return MECHANISMS[mechanism.name]["main"]
+
+
+def _parameter_step(problem, sim, sens, active, errs, coords, tol, offset_sd):
+    """One Gauss-Newton step of the coordinates (zero for the inactive), bounded, with the priors."""
+    n_free = len(errs) + sim.shape[1] + 1  # error amplitudes, offsets, clock shift
+    X = _design(problem, sim, [sens[i] for i in active] + list(errs))
+    prior_var = np.r_[tol[active] ** 2, np.full(len(errs), ERROR_AMPLITUDE_SD**2), offset_sd**2, MAX_SHIFT_PRIOR**2]
+    lo = np.r_[-BOUND_TOLERANCES * tol[active] - coords[active], np.full(n_free, -np.inf)]
+    hi = np.r_[BOUND_TOLERANCES * tol[active] - coords[active], np.full(n_free, np.inf)]
+    a, _ = _solve(problem, X, prior_var, np.r_[-coords[active], np.zeros(n_free)], problem.measured - sim,
+                  bounds=(lo, hi))
+    step = np.zeros(len(coords))
+    step[active] = a[: len(active)]
+    return step
 
 
 def _sensitivities(pool, coords, which, tol, sim, state, previous):

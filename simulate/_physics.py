@@ -186,7 +186,7 @@ def make_mechanism(name, **parameters):
 
 
 def parse_physics(spec):
-    """Parse ``NAME[:PARAM=VALUE,...]`` into a Mechanism.
+    """Parse ``NAME[:PARAM=VALUE,...]`` into a Mechanism (the command line's form of ``make_mechanism``).
 
     Raises
     ------
@@ -198,25 +198,17 @@ def parse_physics(spec):
     name = name.strip()
     if name not in MECHANISMS:
         raise ValueError(f"unknown mechanism {name!r} (choose from {', '.join(mechanism_names())})")
-    entry = MECHANISMS[name]
-    params = dict(entry["defaults"])
+    defaults = MECHANISMS[name]["defaults"]
+    given = {}
     for item in filter(None, (s.strip() for s in rest.split(","))):
         key, eq, value = item.partition("=")
         key = key.strip()
         if not eq:
             raise ValueError(f"mechanism {name}: expected PARAM=VALUE, got {item!r}")
-        if key not in params:
-            raise ValueError(f"mechanism {name}: unknown parameter {key!r} (has {', '.join(params)})")
-        if isinstance(entry["defaults"][key], str):
-            params[key] = value.strip()
-            continue
-        try:
-            number = float(value)
-        except ValueError:
-            raise ValueError(f"mechanism {name}: {key}={value!r} is not a number") from None
-        if not np.isfinite(number) or number < 0:
-            raise ValueError(f"mechanism {name}: {key} must be a finite non-negative number")
-        params[key] = number
-    if "radius" in params and params["radius"] <= 0:
-        raise ValueError(f"mechanism {name}: radius must be positive")
-    return Mechanism(name, params)
+        if key in defaults and not isinstance(defaults[key], str):
+            try:
+                value = float(value)
+            except ValueError:
+                raise ValueError(f"mechanism {name}: {key}={value!r} is not a number") from None
+        given[key] = value.strip() if isinstance(value, str) else value
+    return make_mechanism(name, **given)

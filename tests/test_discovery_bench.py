@@ -23,7 +23,21 @@ def test_default_cases_hold_enough_no_physics_cases_with_distinct_seeds():
     n_none = sum(name is None for name, _, _ in cases)
     assert n_none / len(cases) >= 0.2
     assert len({seed for _, _, seed in cases}) == len(cases)
-    assert {name for name, _, _ in cases} - {None} == set(MECHANISMS)
+    assert {name for name, _, _ in cases} - {None} == {n for n in MECHANISMS if MECHANISMS[n].get("candidate", True)}
+
+
+def test_realistic_cases_hold_no_mechanism_and_out_of_menu_shares():
+    from dragline.compare._discovery_bench import realistic_cases
+
+    for quick in (False, True):
+        cases = realistic_cases(quick=quick)
+        names = [name for name, _, _, _ in cases]
+        assert all(world == "realistic" for *_, world in cases)
+        assert names.count(None) / len(cases) >= 0.2
+        out_of_menu = [n for n in names if n is not None and not (n in MECHANISMS and MECHANISMS[n].get("candidate", True))]
+        assert len(out_of_menu) / len(cases) >= 0.15
+        assert "sheave_bearing_damping" in out_of_menu  # a mechanism the simulator has, kept off the menu
+        assert len({seed for _, _, seed, _ in cases}) == len(cases)
 
 
 def _case(truth, value, verdict, rel=None, also=()):

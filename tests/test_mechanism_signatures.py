@@ -55,6 +55,7 @@ SIGNATURE_TESTS = {
     "pulley_friction": "test_pulley_friction_decays_the_slide_linearly_by_the_capstan_limit",
     "pulley_inertia": "test_pulley_inertia_lowers_the_slide_frequency_by_the_added_mass_without_decay",
     "aero_drag": "test_aero_drag_on_a_body_follows_the_quadratic_drag_pendulum",
+    "sheave_bearing_damping": "test_sheave_bearing_damping_decays_the_slide_exponentially_at_c_over_r2",
 }
 
 
@@ -233,6 +234,20 @@ def test_pulley_inertia_lowers_the_slide_frequency_by_the_added_mass_without_dec
     # frequencies measured 653.7 Hz and 393.4 Hz
     assert found[False] == pytest.approx(np.sqrt(stiffness / moving_mass) / (2 * np.pi), rel=1e-3)
     assert found[True] / found[False] == pytest.approx(np.sqrt(moving_mass / (moving_mass + added)), rel=1e-3)
+
+
+def test_sheave_bearing_damping_decays_the_slide_exponentially_at_c_over_r2(rig):
+    """A viscous force c / r^2 against the slide: zeta = c / (2 r^2 sqrt(k m)), an exponential envelope."""
+    props = _properties(rig, "hoist_rope")
+    ring, model, rest, (_, _, _, stiffness, moving_mass) = _ring(props, turn=np.pi / 2)
+    radius, zeta = 0.05, 0.02
+    c = 2 * zeta * np.sqrt(stiffness * moving_mass) * radius**2  # N m s/rad
+    t, u, _ = _slide(ring, model, rest, f"sheave_bearing_damping:c={float(c)!r},radius={radius}", 1e-4, 0.05)
+    freq, found, _ = dominant_mode(u, t[1] - t[0])
+    env = envelope_shape(u, t)
+    assert env["shape"] == "exponential", env["models"]
+    assert found == pytest.approx(zeta, rel=0.02)
+    assert freq == pytest.approx(np.sqrt(1 - zeta**2) * np.sqrt(stiffness / moving_mass) / (2 * np.pi), rel=1e-3)
 
 
 def _capstan_decay(rig, mu, turn):
