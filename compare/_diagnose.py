@@ -668,7 +668,11 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         if joint is not None:
             value = float(joint["mechanism"].parameters[lead["main"]])
             points[lead["name"]].append((value, joint["sim"], problem.evaluate(joint["sim"])))
+            # The profile's curvature comes from the search on one rig; the
+            # joint point sits on another and would bend the parabola.
+            profile = scored[lead["name"]]["profile"]
             scored[lead["name"]] = score_candidate(problem, lead, points[lead["name"]])
+            scored[lead["name"]]["profile"] = profile
             scored[lead["name"]]["n_simulations"] += joint["n_simulations"] - 1
 
     # 4. Null test: surrogates of the best model's residual.
