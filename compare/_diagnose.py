@@ -87,7 +87,7 @@ from ._locate import (
 )
 from ._metrics import channel_metrics
 from ._second_round import second_round
-from ._updating import joint_refit, model_error, nuisance_correlation, update_model
+from ._updating import OFFSET_FINDING, joint_refit, model_error, nuisance_correlation, update_model
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json", "write_diagnosis_report"]
 
@@ -764,6 +764,10 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         # beyond OFFSET_FINDING a finding; beyond OFFSET_LIMIT times
         # DIFFERENT_RIG no parameter within tolerance comes near: another rig.
         left = update["block"]["offsets_left"]
+        if joint is not None and after_name == joint["mechanism"].name:
+            # A mechanism can shift the mean pose (rope held in a ring): the
+            # offsets left are those of the joint refit with it.
+            left = joint["offsets"]
         judged = {c: left[c] for c in channels if channel_kind(c) in OFFSET_LIMIT}
         limit = {c: DIFFERENT_RIG * OFFSET_LIMIT[channel_kind(c)] for c in judged}
     else:
@@ -779,9 +783,11 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     updates = _significant_updates(update)
     verdict, reason = decide(hypotheses, threshold, structured_before, structured_after,
                              offsets_ok=not too_far, offsets_note=offsets_note, updates=updates)
-    if update is not None and update["block"]["unexplained_offsets"] and not too_far:
+    findings = [c for c in channels if update is not None and c in left
+                and abs(left[c]) > OFFSET_FINDING.get(channel_kind(c), math.inf)]
+    if findings and not too_far:
         reason += ("; finding: constant offsets no parameter within tolerance explains on "
-                   + ", ".join(f"{c} ({left[c]:+.3g})" for c in update["block"]["unexplained_offsets"]))
+                   + ", ".join(f"{c} ({left[c]:+.3g})" for c in findings))
     second = None
     if verdict in scored:
         note(f"fitting the other candidates on top of {verdict}")

@@ -322,7 +322,8 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     -------
     dict or None
         ``coords``, ``mechanism`` (refitted), ``sim`` (n, c), ``rig``,
-        ``maneuver``, ``initial_state``, ``n_simulations``, ``history``;
+        ``maneuver``, ``initial_state``, ``n_simulations``, ``history``,
+        ``offsets`` (channel -> the constant offset left, with its prior);
         None when the mechanism's simulation fails.
     """
     from scipy.optimize import minimize_scalar
@@ -379,8 +380,11 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
                     options={"xatol": 0.02, "maxiter": JOINT_VALUE_EVALS})
     value = min(tried, key=lambda v: tried[v][0])
     history = fit.history + [{"step": mechanism.name, "value": value, "objective": tried[value][0]}]
+    nuisance = _objective_at(problem, tried[value][1], coords, tol, offset_sd, errs)[2]
+    offsets = dict(zip(ctx["channels"], map(float, nuisance[len(errs):len(errs) + len(ctx["channels"])])))
     return {"coords": coords, "mechanism": make_mechanism(mechanism.name, **{main: value}), "sim": tried[value][1],
-            "rig": rig, "maneuver": maneuver, "initial_state": state, "n_simulations": n_sims, "history": history}
+            "rig": rig, "maneuver": maneuver, "initial_state": state, "n_simulations": n_sims, "history": history,
+            "offsets": offsets}
 
 
 @dataclass
