@@ -92,6 +92,7 @@ BOUND_TOLERANCES = 3.0
 # Identifiable: the recording shrinks the prior standard deviation at least this much.
 IDENTIFIABLE_RATIO = 0.5
 
+
 def _channels_of(result, ctx):
     t = np.asarray(result.time, float)
     return np.column_stack([np.interp(ctx["time"], t, np.asarray(result.table[ch], float)) for ch in ctx["channels"]])
