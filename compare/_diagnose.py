@@ -323,14 +323,13 @@ def rope_bias_allowance(rig, nominal_table, sigmas=2.5):
     deviations of both together. Zero for a rig without tolerances.
     """
     out = {}
-    t0 = float(nominal_table["time"].iloc[0])
+    first = nominal_table["time"] == float(nominal_table["time"].iloc[0])
     for channel in ROPE_CHANNELS:
         rope = channel.split(".")[0]
         spec = rig.ropes.get(rope)
         reel_col = f"{rope}.reel_length"
         if spec is None or channel not in nominal_table or reel_col not in nominal_table:
             continue
-        first = nominal_table["time"] == t0
         stretch = float(nominal_table.loc[first, channel].iloc[0] - nominal_table.loc[first, reel_col].iloc[0])
         var = 0.0
         for p in rig.tolerances:

@@ -355,9 +355,13 @@ def simulate_channels(name, main, value, ctx=None):
                        rate_hz=c["rate_hz"], initial_state=c["initial_state"])
     except (SimulationError, FloatingPointError):
         return None
-    table = res.table
-    t = np.asarray(res.time, float)
-    return np.column_stack([np.interp(c["time"], t, np.asarray(table[ch], float)) for ch in c["channels"]])
+    return channels_on(res, c)
+
+
+def channels_on(result, ctx):
+    """A simulation's dynamic channels interpolated on the problem's time base, (n, c)."""
+    t = np.asarray(result.time, float)
+    return np.column_stack([np.interp(ctx["time"], t, np.asarray(result.table[ch], float)) for ch in ctx["channels"]])
 
 
 def _grid_job(name, main, value):

@@ -53,7 +53,7 @@ from ..simulate import (
     simulate,
 )
 from ._compare import channel_kind
-from ._hypotheses import _init, _map, _pool
+from ._hypotheses import _init, _map, _pool, channels_on
 
 __all__ = ["OFFSET_PRIOR", "update_model", "joint_refit", "model_error", "finer_discretization",
            "nuisance_correlation"]
@@ -93,11 +93,6 @@ BOUND_TOLERANCES = 3.0
 IDENTIFIABLE_RATIO = 0.5
 
 
-def _channels_of(result, ctx):
-    t = np.asarray(result.time, float)
-    return np.column_stack([np.interp(ctx["time"], t, np.asarray(result.table[ch], float)) for ch in ctx["channels"]])
-
-
 def _rig_job(coords, discretization=None, dt_factor=None, guess=None):
     """Channels of the rig with its parameters at ``coords`` (None when the simulation fails)."""
     from ._hypotheses import _CTX as ctx
@@ -113,7 +108,7 @@ def _rig_job(coords, discretization=None, dt_factor=None, guess=None):
                        if discretization is None else None)
     except (SimulationError, StaticsError, FloatingPointError):
         return None, None
-    return _channels_of(res, ctx), res.states[0]
+    return channels_on(res, ctx), res.states[0]
 
 
 def finer_discretization(rig, discretization):
