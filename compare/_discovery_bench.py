@@ -134,8 +134,12 @@ def _truth_world(name, value, seed):
     return truth_rig, truth_maneuver, TRUTH_DISCRETIZATION, physics, coords
 
 
-def _run_case(name, value, seed, world="nominal", workdir=None):
-    """Make one blind session, diagnose it from its directory alone, score it here."""
+def _run_case(name, value, seed, world="nominal", workdir=None, keep=None):
+    """Make one blind session, diagnose it from its directory alone, score it here.
+
+    ``keep``: a folder where the case's ``diagnosis.json`` is kept (as
+    ``case<seed>.json``), to read why a case went the way it did.
+    """
     from ..capture import synthesize_session
     from ..capture._lab import default_lab_cameras
     from ..capture._session_io import write_session_dir
@@ -161,6 +165,11 @@ def _run_case(name, value, seed, world="nominal", workdir=None):
     t0 = time.perf_counter()
     try:
         doc = diagnose_path(folder, workers=1, seed=seed).doc
+        if keep is not None:
+            from ._diagnose import write_diagnosis_json
+
+            os.makedirs(keep, exist_ok=True)
+            write_diagnosis_json(os.path.join(keep, f"case{seed}.json"), doc)
     except ValueError as exc:
         out.update(verdict="error", reason=str(exc), diagnosis_seconds=time.perf_counter() - t0)
         return out

@@ -71,6 +71,7 @@ from ..simulate import (
     MECHANISMS,
     SimulationError,
     assemble,
+    body_to_inertial,
     make_mechanism,
     simulate,
     stable_time_step,
@@ -359,9 +360,31 @@ def simulate_channels(name, main, value, ctx=None):
 
 
 def channels_on(result, ctx):
-    """A simulation's dynamic channels interpolated on the problem's time base, (n, c)."""
+    """A simulation's dynamic channels as the recording reports them, on the problem's time base, (n, c).
+
+    A recording's body positions are mass centres reconstructed from the
+    markers with the rig file's mass-centre offsets (``ctx["reported_cg"]``,
+    body -> (3,) m): a marker-fixed point. A simulated rig whose mass centre
+    moved (model updating) is read at that same point, not at its own mass
+    centre, or a 5 mm change of the bucket's mass centre would show as 4 mm
+    of bucket.x swinging with the pitch that no parameter could fit.
+    """
     t = np.asarray(result.time, float)
-    return np.column_stack([np.interp(ctx["time"], t, np.asarray(result.table[ch], float)) for ch in ctx["channels"]])
+    table = result.table
+    shift = {}
+    for body, cg in (ctx.get("reported_cg") or {}).items():
+        moved = np.asarray(cg, float) - np.asarray(result.model.rig.bodies[body].cg_body, float)
+        if np.any(moved != 0.0):
+            T = body_to_inertial(*(np.asarray(table[f"{body}.{a}"], float) for a in ("roll", "pitch", "yaw")))
+            shift[body] = T @ moved
+    columns = []
+    for ch in ctx["channels"]:
+        values = np.asarray(table[ch], float)
+        body, _, quantity = ch.partition(".")
+        if body in shift and quantity in ("x", "y", "z"):
+            values = values + shift[body][:, "xyz".index(quantity)]
+        columns.append(np.interp(ctx["time"], t, values))
+    return np.column_stack(columns)
 
 
 def _grid_job(name, main, value):

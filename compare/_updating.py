@@ -14,17 +14,20 @@ stiffness and damping; metres for positions), with the lab's belief
 per parameter, a finite difference over ``FD_FRACTION`` of its tolerance,
 in parallel; a parameter whose one-tolerance change moves the weighted
 residual by less than ``SCREEN`` stays nominal and is reported not
-identifiable. The active coordinates, one constant offset per channel
-(marker placement and calibration: prior ``OFFSET_PRIOR``, so a static
-offset goes to the parameters when they can make it within tolerance),
-the clock shift and the model-error amplitudes (below) are fitted jointly
-by Gauss-Newton on the chi2 of ``_hypotheses`` plus the priors, each step
-a bounded least-squares solve (no parameter beyond ``BOUND_TOLERANCES``),
-simulated, kept only if it lowers the objective (else half of it is
-tried), and the sensitivities recomputed at the new point, for at most
-``GN_ITERATIONS``. Uncertainties come from the posterior covariance,
-scaled by the residual's dispersion; a parameter is *identifiable* when
-the recording at least halves its prior standard deviation.
+identifiable. The active coordinates are then fitted by scipy's bounded
+trust-region least squares (``trf``, scaled by the tolerances, no parameter
+beyond ``BOUND_TOLERANCES``) on the chi2 of ``_hypotheses`` plus the
+priors, with our own parallel finite-difference Jacobian renewed at every
+step. The nuisance - one constant offset per channel (marker placement and
+calibration: prior ``OFFSET_PRIOR``, so a static offset goes to the
+parameters when they can make it within tolerance), the clock shift and the
+model-error amplitudes (below) - is linear and is projected out at every
+evaluation (variable projection). It stops when chi2 is within
+``AT_NOISE`` of its noise expectation, when a step gains less than
+``UPDATE_RTOL``, or after ``MAX_JACOBIANS``. Uncertainties come from the
+posterior covariance, scaled by the residual's dispersion; a parameter is
+*identifiable* when the recording at least halves its prior standard
+deviation.
 
 Model error
 -----------
@@ -33,7 +36,9 @@ and once with half the time step. Their differences from the model are
 the directions in which its numerical error lies on this maneuver; they
 are reported (RMS per channel in noise units) and fitted as free nuisance
 regressors with every candidate, so a mismatch the finer model also shows
-is never credited to missing physics.
+is never credited to missing physics; a located mismatch within
+``MODEL_ERROR_FACTOR`` times their size in its channel and window is
+marked as the model's own error (``mark_model_error``).
 """
 
 from __future__ import annotations
@@ -56,7 +61,7 @@ from ._compare import channel_kind
 from ._hypotheses import _init, _map, _pool, channels_on
 
 __all__ = ["OFFSET_PRIOR", "update_model", "joint_refit", "model_error", "finer_discretization",
-           "nuisance_correlation"]
+           "nuisance_correlation", "mark_model_error"]
 
 # What a constant offset between a recorded channel and the model may
 # honestly be, with no parameter wrong (one standard deviation): marker
@@ -66,12 +71,20 @@ OFFSET_PRIOR = {"position": 0.005, "angle": math.radians(1.0), "rope_length": 0.
 # within tolerance explains them (the old 10 mm / 2 deg gate, now applied
 # after updating).
 OFFSET_FINDING = {"position": 0.010, "angle": math.radians(2.0), "rope_length": 0.010}
-GN_ITERATIONS = 8
-GN_RTOL = 0.005
+# At most this many Jacobians (each one simulation per active parameter) per fit.
+MAX_JACOBIANS = 8
+# Updating stops when a step gains less than this share of the objective.
+UPDATE_RTOL = 0.01
 # Updating stops once chi2 is within this factor of its noise expectation.
-AT_NOISE = 1.2
-# Finite-difference step, in tolerances.
-FD_FRACTION = 0.1
+AT_NOISE = 1.05
+# Finite-difference step, in tolerances. A simulation is a smooth function of
+# the parameters (fixed step; statics from any guess agree to 1e-14 m), so a
+# small step costs no accuracy; at 0.1 tolerance the forward difference's
+# own error slowed the fit to a crawl along the valley where masses and the
+# wire rope's stiffness trade (1.3 times the noise after 8 Jacobians on a
+# recording of the model itself, masses at their bounds); at 0.01 it reached
+# the noise in 7, every identifiable parameter within 0.2 tolerance.
+FD_FRACTION = 0.01
 # A parameter whose one-tolerance change moves the weighted residual by less
 # than this (sqrt chi2: three noise-level sigmas in quadrature) is not updated.
 SCREEN = 3.0
@@ -87,6 +100,12 @@ DEGENERATE = 0.9
 # difference is its direction, not its size (Richardson's factor depends on
 # the order of convergence).
 ERROR_AMPLITUDE_SD = 10.0
+# A located mismatch no larger than this many times the finer model's
+# difference there is the model's own error: the next finer level is not
+# converged either, and with counts up by 1.3-2x the nominal model's distance
+# from the converged solution is about twice its distance from the next
+# level (Richardson, second order).
+MODEL_ERROR_FACTOR = 2.0
 # No parameter moves further than this many tolerances from nominal.
 BOUND_TOLERANCES = 3.0
 # Identifiable: the recording shrinks the prior standard deviation at least this much.
@@ -173,6 +192,43 @@ def model_error(problem, ctx, nominal_sim, workers=2):
     return directions, block
 
 
+def mark_model_error(entries, time, directions, channels, factor=MODEL_ERROR_FACTOR):
+    """Mark the located mismatch entries that the model's own numerical error could make.
+
+    Parameters
+    ----------
+    entries : list of dict
+        ``_locate.locate_mismatch`` entries (``channel``, ``t_start``,
+        ``t_end``, ``rms``) of a residual.
+    time : ndarray (n,)
+    directions : sequence of ndarray (n, c)
+        ``model_error``'s differences.
+    channels : sequence of str
+        The columns' names.
+    factor : float
+
+    Returns
+    -------
+    list of dict
+        Copies with ``model_error_rms`` (the largest direction's low-passed
+        RMS in that channel and window, its mean over the record removed as
+        the offsets remove it) and ``within_model_error`` (the entry's RMS
+        is at most ``factor`` times it).
+    """
+    from ._locate import LOWPASS_S, low_pass
+
+    t = np.asarray(time, float)
+    width = max(3, int(round(LOWPASS_S / float(t[1] - t[0]))) | 1)
+    smooth = [low_pass(d - np.nanmean(d, axis=0), width) for d in directions]
+    out = []
+    for e in entries:
+        sel = (t >= e["t_start"] - 1e-9) & (t <= e["t_end"] + 1e-9)
+        j = list(channels).index(e["channel"])
+        budget = max((float(np.sqrt(np.nanmean(s[sel, j] ** 2))) for s in smooth), default=0.0)
+        out.append(dict(e, model_error_rms=budget, within_model_error=bool(e["rms"] <= factor * budget)))
+    return out
+
+
 def _level_name(discretization):
     return discretization if isinstance(discretization, str) else ",".join(f"{k}={v}" for k, v in discretization.items())
 
@@ -213,7 +269,7 @@ def _solve(problem, X, prior_var, prior_mean, residual, bounds=None):
     return lsq_linear(R, target, bounds=bounds, method="bvls").x, H_inv
 
 
-def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, progress=None):
+def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, progress=None, start=None):
     """Update the rig's uncertain parameters to the recording, within their tolerances.
 
     Parameters
@@ -230,6 +286,10 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
         mimic it.
     workers : int
     progress : callable, optional
+    start : dict, optional
+        An earlier result to resume from (its coordinates, sensitivities and
+        screening), for instance with the model error estimated again at
+        the rig it found.
 
     Returns
     -------
@@ -248,22 +308,28 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
     _init(ctx)
     pool = _pool(min(workers, os.cpu_count() or 1), ctx)
     try:
-        coords, sim, state = np.zeros(k), nominal_sim, ctx["initial_state"]
-        sens, failed = _sensitivities(pool, coords, np.arange(k), tol, sim, state, [None] * k)
-        n_sims = k
-        # Sensitivities first: a parameter whose one-tolerance change moves
-        # the weighted residual by less than SCREEN (chi2) is left nominal.
-        strength = np.array([math.sqrt(float((problem.W * np.where(problem.valid, s_ * t, 0.0) ** 2).sum()))
-                             for s_, t in zip(sens, tol)])
-        active = np.flatnonzero(strength >= SCREEN)
-        note(f"sensitivities of {k} rig parameters done; {len(active)} move the recording")
+        if start is None:
+            coords, sim, state = np.zeros(k), nominal_sim, ctx["initial_state"]
+            sens, failed = _sensitivities(pool, coords, np.arange(k), tol, sim, state, [None] * k)
+            n_sims = k
+            # Sensitivities first: a parameter whose one-tolerance change moves
+            # the weighted residual by less than SCREEN (chi2) is left nominal.
+            strength = np.array([math.sqrt(float((problem.W * np.where(problem.valid, s_ * t, 0.0) ** 2).sum()))
+                                 for s_, t in zip(sens, tol)])
+            active = np.flatnonzero(strength >= SCREEN)
+            note(f"sensitivities of {k} rig parameters done; {len(active)} move the recording")
+        else:
+            coords, sim, state, sens = start["coords"], start["sim"], start["initial_state"], start["sensitivities"]
+            strength, active, failed = start["strength"], start["active"], start["failed"]
+            n_sims = start["n_simulations"]
         offset_sd = np.array([OFFSET_PRIOR.get(channel_kind(ch), 0.005) for ch in ctx["channels"]])
         errs = list(error_directions)
         err_var = np.full(len(errs), ERROR_AMPLITUDE_SD**2)
-        fit = _gauss_newton(problem, pool, _Fit(coords, sim, state, sens), active, tol, offset_sd, errs,
-                            GN_ITERATIONS, lambda m: note(f"updating: {m}"))
+        fit = _trust_region(problem, pool, _Fit(coords, sim, state, sens), active, tol, offset_sd, errs,
+                            MAX_JACOBIANS, lambda m: note(f"updating: {m}"))
         coords, sim, state, sens, nuis = fit.coords, fit.sim, fit.state, fit.sens, fit.nuisance
-        best_chi2, history = fit.chi2, fit.history
+        best_chi2 = fit.chi2
+        history = (start["block"]["iterations"] if start is not None else []) + fit.history
         failed = sorted(set(failed) | set(fit.failed))
         n_sims += fit.n_sims
     finally:
@@ -285,7 +351,7 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
                                failed_names)
     return {"coords": coords, "sim": sim, "initial_state": state, "rig": rig, "maneuver": maneuver,
             "sensitivities": sens, "covariance": cov, "offsets": offsets, "block": block, "n_simulations": n_sims,
-            "active": active}
+            "active": active, "strength": strength, "failed": failed}
 
 
 def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2, progress=None):
@@ -294,9 +360,9 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     Updating ran before any mechanism, so with a real mechanism at work the
     parameters took up what they could of its effect (material damping
     absorbs a friction's decay; masses and the boom point drift to their
-    bounds). With the mechanism in every simulation, Gauss-Newton on the
-    parameters starts again from the better of the nominal rig and the
-    updated one, the sensitivities recomputed at every accepted step; then
+    bounds). With the mechanism in every simulation, the trust-region fit of
+    the parameters starts again from the better of the nominal rig and the
+    updated one, the sensitivities recomputed at every step; then
     the mechanism's main parameter is searched again on top of the jointly
     updated rig.
 
@@ -347,8 +413,8 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
         _, coords, sim, state = min(options, key=lambda o: o[0])
         sens, _ = _sensitivities(pool, coords, active, tol, sim, state, list(update["sensitivities"]))
         n_sims += len(active)
-        fit = _gauss_newton(problem, pool, _Fit(coords, sim, state, sens), active, tol, offset_sd, errs,
-                            GN_ITERATIONS, lambda m: note(f"joint refit with {mechanism.name}: {m}"))
+        fit = _trust_region(problem, pool, _Fit(coords, sim, state, sens), active, tol, offset_sd, errs,
+                            MAX_JACOBIANS, lambda m: note(f"joint refit with {mechanism.name}: {m}"))
         n_sims += fit.n_sims
     finally:
         if pool is not None:
@@ -385,7 +451,7 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
 
 @dataclass
 class _Fit:
-    """Where a Gauss-Newton run stands."""
+    """Where a fit of the parameters stands."""
 
     coords: np.ndarray
     sim: np.ndarray
@@ -399,65 +465,116 @@ class _Fit:
     n_sims: int = 0
 
 
-def _gauss_newton(problem, pool, fit, active, tol, offset_sd, errs, iterations, note):
-    """Gauss-Newton on the active coordinates from ``fit``: bounded steps, halved once, sensitivities renewed.
+def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobians, note):
+    """Bounded trust-region least squares on the active coordinates from ``fit``.
 
-    Each step is simulated and kept only if it lowers the objective (chi2
-    plus priors); it stops when the gain falls below ``GN_RTOL`` of the
-    objective, when chi2 reaches ``AT_NOISE`` times its noise expectation,
-    or after ``iterations`` steps.
+    scipy's ``least_squares`` (``trf``, ``x_scale`` the tolerances, so its
+    trust region is measured in tolerances) on the weighted residual with the
+    nuisance (model-error amplitudes, per-channel offsets, clock shift)
+    projected out at every evaluation, and the priors as extra residual
+    rows. Its Jacobian is ours: finite differences over ``FD_FRACTION``
+    tolerances simulated in parallel, each from the equilibrium of the point
+    it differentiates, projected the same way (the variable-projection
+    Jacobian of Kaufman). A Gauss-Newton iteration without a trust region
+    took full steps from the nominal rig to the bounds (the masses and the
+    wire rope's stiffness move the statics together), where it stalled at
+    1.3 times the noise on a recording of the model itself.
     """
-    fit.objective, fit.chi2, fit.nuisance, _ = _objective_at(problem, fit.sim, fit.coords, tol, offset_sd, errs)
-    fit.history = [{"iteration": 0, "objective": fit.objective, "chi2": fit.chi2}]
-    for it in range(1, iterations + 1):
-        if fit.chi2 < AT_NOISE * problem.n_weighted:
-            break  # the model already fits within noise
-        step = _parameter_step(problem, fit.sim, fit.sens, active, errs, fit.coords, tol, offset_sd)
-        accepted, obj, chi2, fraction = False, None, None, 1.0
-        for fraction in (1.0, 0.5):
-            trial = fit.coords + fraction * step
-            trial_sim, trial_state = _map(pool, _rig_job, [(trial, None, None, fit.state)])[0]
+    from scipy.optimize import least_squares
+
+    k = len(fit.coords)
+    base = fit.coords.copy()
+    lo, hi = -BOUND_TOLERANCES * tol[active], BOUND_TOLERANCES * tol[active]
+    cache = {}
+    best = {"objective": math.inf}
+    jacobians = [0]
+
+    def full(xa):
+        coords = base.copy()
+        coords[active] = xa
+        return coords
+
+    def simulated(xa):
+        coords = full(xa)
+        key = coords.tobytes()
+        if key not in cache:
+            guess = best.get("state", fit.state)
+            cache[key] = _map(pool, _rig_job, [(coords, None, None, guess)])[0]
             fit.n_sims += 1
-            if trial_sim is None:
-                continue
-            obj, chi2, trial_nuis, _ = _objective_at(problem, trial_sim, trial, tol, offset_sd, errs)
-            if obj < fit.objective:
-                accepted = True
-                break
-        fit.history.append({"iteration": it, "objective": obj, "chi2": chi2, "step_fraction": fraction,
-                            "accepted": accepted})
-        if not accepted:
-            break
-        gain = fit.objective - obj
-        fit.coords, fit.sim, fit.state, fit.nuisance = trial, trial_sim, trial_state, trial_nuis
-        fit.objective, fit.chi2 = obj, chi2
-        if gain < GN_RTOL * obj or it == iterations or chi2 < AT_NOISE * problem.n_weighted:
-            break
-        fit.sens, bad = _sensitivities(pool, fit.coords, active, tol, fit.sim, fit.state, fit.sens)
-        fit.failed = sorted(set(fit.failed) | set(bad))
-        fit.n_sims += len(active)
-        note(f"iteration {it}, chi2 {chi2:.4g}")
+        return coords, cache[key]
+
+    def residual(xa):
+        coords, (sim, state) = simulated(xa)
+        if sim is None:
+            return None
+        obj, chi2, nuis, H_inv = _objective_at(problem, sim, coords, tol, offset_sd, errs)
+        if obj < best["objective"]:
+            best.update(objective=obj, chi2=chi2, coords=coords, sim=sim, state=state, nuisance=nuis)
+        X = _design(problem, sim, errs)
+        z = (np.where(problem.valid, problem.measured - sim, 0.0) * np.sqrt(problem.W)).ravel()
+        return np.r_[z - X @ nuis, _prior_rows(nuis, coords, tol, offset_sd, errs)], X, H_inv
+
+    n_rows = []
+
+    def fun(xa):
+        out = residual(xa)
+        if out is None:
+            # A failed simulation: a step the trust region rejects (the start never fails: it was simulated).
+            return np.full(n_rows[0], 1e6) if n_rows else None
+        if not n_rows:
+            n_rows.append(len(out[0]))
+        return out[0]
+
+    def jac(xa):
+        coords, (sim, state) = simulated(xa)
+        if jacobians[0] > 0:
+            fit.sens, bad = _sensitivities(pool, coords, active, tol, sim, state, fit.sens)
+            fit.failed = sorted(set(fit.failed) | set(bad))
+            fit.n_sims += len(active)
+        jacobians[0] += 1
+        X = _design(problem, sim, errs)
+        _, _, _, H_inv = _objective_at(problem, sim, coords, tol, offset_sd, errs)
+        sw = np.sqrt(problem.W)
+        cols = []
+        for i in active:
+            v = (np.where(problem.valid, fit.sens[i], 0.0) * sw).ravel()
+            a = H_inv @ (X.T @ v)
+            unit = np.zeros(k)
+            unit[i] = 1.0
+            cols.append(np.r_[-(v - X @ a), _prior_rows(-a, unit, tol, offset_sd, errs)])
+        return np.stack(cols, axis=1)
+
+    def callback(intermediate_result):  # noqa: ARG001 (scipy passes the iterate)
+        note(f"evaluation {fit.n_sims}, chi2 {best['chi2']:.4g}")
+        if best["chi2"] < AT_NOISE * problem.n_weighted or jacobians[0] >= max_jacobians:
+            raise StopIteration
+
+    # Strictly inside the bounds, as trf starts (a start on a bound would cost one more simulation).
+    x0 = np.clip(fit.coords[active], lo + 1e-6 * tol[active], hi - 1e-6 * tol[active])
+    if fun(x0) is None:
+        return fit
+    fit.history = [{"evaluations": fit.n_sims, "objective": best["objective"], "chi2": best["chi2"]}]
+    if best["chi2"] >= AT_NOISE * problem.n_weighted and len(active):
+        least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=tol[active], method="trf",
+                      ftol=UPDATE_RTOL, xtol=1e-3, gtol=1e-8, max_nfev=4 * max_jacobians, callback=callback)
+    fit.coords, fit.sim, fit.state = best["coords"], best["sim"], best["state"]
+    fit.nuisance, fit.objective, fit.chi2 = best["nuisance"], best["objective"], best["chi2"]
+    fit.history.append({"evaluations": fit.n_sims, "jacobians": jacobians[0], "objective": fit.objective,
+                        "chi2": fit.chi2})
     return fit
+
+
+def _prior_rows(nuis, coords, tol, offset_sd, errs):
+    """The priors as residual rows: model-error amplitudes, offsets, clock shift, coordinates."""
+    e, c = len(errs), len(offset_sd)
+    return np.r_[nuis[:e] / ERROR_AMPLITUDE_SD, nuis[e:e + c] / offset_sd, nuis[e + c:] / MAX_SHIFT_PRIOR,
+                 coords / tol]
 
 
 def _main_of(mechanism):
     from ..simulate import MECHANISMS
 
     return MECHANISMS[mechanism.name]["main"]
-
-
-def _parameter_step(problem, sim, sens, active, errs, coords, tol, offset_sd):
-    """One Gauss-Newton step of the coordinates (zero for the inactive), bounded, with the priors."""
-    n_free = len(errs) + sim.shape[1] + 1  # error amplitudes, offsets, clock shift
-    X = _design(problem, sim, [sens[i] for i in active] + list(errs))
-    prior_var = np.r_[tol[active] ** 2, np.full(len(errs), ERROR_AMPLITUDE_SD**2), offset_sd**2, MAX_SHIFT_PRIOR**2]
-    lo = np.r_[-BOUND_TOLERANCES * tol[active] - coords[active], np.full(n_free, -np.inf)]
-    hi = np.r_[BOUND_TOLERANCES * tol[active] - coords[active], np.full(n_free, np.inf)]
-    a, _ = _solve(problem, X, prior_var, np.r_[-coords[active], np.zeros(n_free)], problem.measured - sim,
-                  bounds=(lo, hi))
-    step = np.zeros(len(coords))
-    step[active] = a[: len(active)]
-    return step
 
 
 def _sensitivities(pool, coords, which, tol, sim, state, previous):
@@ -591,8 +708,8 @@ def _calibration_block(params, coords, cov, information, strength, offsets, chan
         "unexplained_offsets": findings,
         "iterations": history,
         "failed_sensitivities": failed,
-        "method": ("bounded-by-prior Gauss-Newton (chord) over the rig file's tolerances: sensitivities by "
-                   "finite differences over one tolerance, parameters, per-channel offsets (prior "
+        "method": ("bounded trust-region least squares (scipy trf) over the rig file's tolerances, with them as "
+                   f"priors: sensitivities by finite differences over {FD_FRACTION:g} tolerance; per-channel offsets (prior "
                    f"{OFFSET_PRIOR['position'] * 1000:g} mm, {math.degrees(OFFSET_PRIOR['angle']):g} deg) and the "
                    "clock shift fitted jointly; identifiable when the data at least halve the prior spread"),
     }

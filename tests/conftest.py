@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +9,9 @@ import pandas as pd
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("DRAGLINE_SHARED", REPO.parent / "shared"))
+DATA = REPO / "tests" / "data"
+# The seed paper's numbers, transcribed by hand (tests/data/paper/SOURCES.md).
+PAPER_PARAMETERS = DATA / "paper" / "paper_parameters.toml"
 
 
 @pytest.fixture(scope="session")

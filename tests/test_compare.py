@@ -7,8 +7,7 @@ the simulator (the nominal dig maneuver) for the real-data paths.
 
 import json
 import math
-import os
-from pathlib import Path
+import tomllib
 
 import numpy as np
 import pandas as pd
@@ -21,6 +20,7 @@ from dragline.compare import (
     estimate_time_offset,
     reels_stop_time,
 )
+from conftest import PAPER_PARAMETERS
 from dragline.compare._compare import TOLERANCES, channel_kind, iso_grade
 from dragline.compare._paper import DIG_PEAKS
 from dragline.simulate import dig_maneuver, trajectory_columns
@@ -292,12 +292,7 @@ def test_peak_table_against_hand_built_extremes(pair):
 
 
 def test_paper_numbers_match_the_transcription():
-    tomllib = pytest.importorskip("tomllib")
-    shared = Path(os.environ.get("DRAGLINE_SHARED", Path(__file__).resolve().parents[2] / "shared"))
-    path = shared / "data" / "paper_parameters.toml"
-    if not path.exists():
-        pytest.skip(f"{path} not available")
-    dig = tomllib.loads(path.read_text())["dig_maneuver"]
+    dig = tomllib.loads(PAPER_PARAMETERS.read_text())["dig_maneuver"]
     for ch, key in (("bucket.vx", "vx"), ("bucket.vz", "vz"), ("bucket.q", "pitch_rate")):
         for side, paper_side in (("measured", "measured"), ("predicted", "predicted")):
             entry = dig[f"peak_{key}_{paper_side}"]

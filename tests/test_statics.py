@@ -5,7 +5,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from conftest import SHARED
+from conftest import PAPER_PARAMETERS
 from dragline.simulate import Maneuver, assemble, solve_statics
 
 
@@ -41,10 +41,7 @@ def test_rig_is_symmetric_at_rest(rig):
 
 
 def test_builtin_rig_carries_the_papers_numbers(rig):
-    path = SHARED / "data" / "paper_parameters.toml"
-    if not path.exists():
-        pytest.skip("shared/data/paper_parameters.toml not beside the checkout")
-    paper = tomllib.loads(path.read_text())
+    paper = tomllib.loads(PAPER_PARAMETERS.read_text())
     for name, body in paper["bodies"].items():
         spec = rig.bodies[name]
         assert spec.mass == body["mass"]

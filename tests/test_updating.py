@@ -15,7 +15,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from dragline.compare._hypotheses import Problem
+from dragline.compare._hypotheses import Problem, channels_on
 from dragline.compare._locate import DYNAMIC_CHANNELS
 from dragline.compare._updating import model_error, nuisance_correlation, update_model
 from dragline.simulate import apply_parameters, dig_maneuver, parse_physics, simulate
@@ -42,11 +42,14 @@ def updated(rig):
     channels = [c for c in DYNAMIC_CHANNELS if c in nominal.table.columns]
     sigma = np.array([NOISE["angle"] if "pitch" in c else NOISE["position"] for c in channels])
     rng = np.random.default_rng(5)
-    measured = _channels(truth, channels) + rng.normal(size=(len(truth.time), len(channels))) * sigma
+    # As a lab records it: the bucket's position at the rig file's mass centre.
+    reported_cg = {n: b.cg_body for n, b in small.bodies.items()}
+    recorded = channels_on(truth, {"time": nominal.time, "channels": channels, "reported_cg": reported_cg})
+    measured = recorded + rng.normal(size=(len(truth.time), len(channels))) * sigma
     problem = Problem(nominal.time, measured, sigma, t_stop=6.5)
     ctx = {"rig": small, "maneuver": maneuver, "discretization": "baseline", "duration": DURATION,
            "rate_hz": 200.0, "initial_state": nominal.states[0], "time": nominal.time, "channels": channels,
-           "nominal_dt": float(nominal.dt), "parameters": params}
+           "nominal_dt": float(nominal.dt), "parameters": params, "reported_cg": reported_cg}
     nominal_sim = _channels(nominal, channels)
     directions, error_block = model_error(problem, ctx, nominal_sim, workers=2)
     result = update_model(problem, ctx, nominal_sim, directions, workers=2)
@@ -106,3 +109,32 @@ def test_a_mechanism_signature_is_compared_with_every_parameter(updated):
     # A parameter's own sensitivity is perfectly correlated with itself.
     own = nuisance_correlation(updated["problem"], result["sensitivities"][0], result, most=1)[0]
     assert own["parameter"] == updated["params"][0].name and own["correlation"] == pytest.approx(1.0)
+
+
+def test_a_moved_mass_centre_is_read_where_the_recording_reports_it(rig):
+    """The recording's bucket position is the nominal mass centre's marker-fixed point, and so is the model's.
+
+    A rig whose bucket mass centre sits 5 mm from the rig file's: its
+    exact markers, reconstructed with the rig file (as a lab would), give a
+    bucket position that is not the simulated mass centre (it swings with
+    the pitch); ``channels_on`` reads the simulation at the reported point.
+    """
+    from dragline.compare._hypotheses import channels_on
+    from dragline.reconstruct import trajectory_from_markers
+    from dragline.simulate import marker_positions
+
+    params = [p for p in rig.tolerances if p.name in ("bodies.bucket.cg_x", "bodies.bucket.cg_z")]
+    moved_rig, maneuver = apply_parameters(rig, dig_maneuver(), params, np.array([0.005, -0.005]))
+    run = simulate(moved_rig, maneuver, duration=3.0, rate_hz=200.0)
+    names, positions = marker_positions(run)
+    table, _ = trajectory_from_markers(names, positions, 200.0, rig, smoothing="none")
+    channels = ["bucket.x", "bucket.z", "spreader_bar.x"]
+    ok = np.isfinite(table[channels].to_numpy()).all(axis=1)
+    time = np.asarray(table["time"])[ok]
+    reported = channels_on(run, {"time": time, "channels": channels,
+                                 "reported_cg": {n: b.cg_body for n, b in rig.bodies.items()}})
+    own_centre = channels_on(run, {"time": time, "channels": channels})
+    recorded = table[channels].to_numpy()[ok]
+    np.testing.assert_allclose(reported, recorded, atol=1e-8)
+    assert np.abs(own_centre[:, 0] - recorded[:, 0]).max() > 2e-3  # the mass centre itself is elsewhere
+    np.testing.assert_array_equal(own_centre[:, 2], reported[:, 2])  # other bodies untouched

@@ -21,22 +21,11 @@ from dragline.capture import (
 )
 
 
-def _real_dir():
-    candidates = [os.environ.get("DRAGLINE_REAL_EXPORTS", ""),
-                  Path(__file__).parent / "data" / "real_exports",
-                  "/work/shared/data/real_exports"]
-    for c in candidates:
-        if c and (Path(c) / "vicon_nexus_model_outputs.csv").is_file():
-            return Path(c)
-    return None
-
-
-REAL = _real_dir()
-needs_real = pytest.mark.skipif(REAL is None, reason="real VICON exports not found "
-                                "(set DRAGLINE_REAL_EXPORTS)")
-DEV_TRAJ = REAL / "vicon_nexus_devices_and_trajectories_with_gaps.csv" if REAL else None
-MODEL = REAL / "vicon_nexus_model_outputs.csv" if REAL else None
-C3D = REAL / "vicon_static_trial.c3d" if REAL else None
+# Real exports from other labs, committed with their origin (tests/data/real_exports/SOURCES.md).
+REAL = Path(__file__).parent / "data" / "real_exports"
+DEV_TRAJ = REAL / "vicon_nexus_devices_and_trajectories_with_gaps.csv"
+MODEL = REAL / "vicon_nexus_model_outputs.csv"
+C3D = REAL / "vicon_static_trial.c3d"
 
 # The Trajectories section of vicon_nexus_devices_and_trajectories_with_gaps.csv
 # (lines 13-19), verbatim, so the variant tests run even without the fixtures;
@@ -94,12 +83,10 @@ def raw_section(path, name):
 
 # ---------------------------------------------------------------- real files
 
-@needs_real
 def test_embedded_section_is_the_real_one():
     assert DEV_TRAJ.read_text().splitlines()[12:19] == REAL_TRAJ_LINES
 
 
-@needs_real
 def test_real_devices_and_trajectories_sections_rates_and_frames():
     export = read_vicon_csv(DEV_TRAJ)
     assert list(export.sections) == ["devices", "trajectories"]
@@ -119,7 +106,6 @@ def test_real_devices_and_trajectories_sections_rates_and_frames():
     assert export.sections["devices"].sub_frame.tolist() == [0, 1, 2, 0, 1, 2]
 
 
-@needs_real
 def test_real_devices_values_and_column_names():
     devices = read_vicon_csv(DEV_TRAJ).sections["devices"]
     raw = raw_section(DEV_TRAJ, "Devices")
@@ -135,7 +121,6 @@ def test_real_devices_values_and_column_names():
     assert devices.units[0] == "N" and devices.units[vl - 2] == "V"
 
 
-@needs_real
 def test_real_trajectories_positions_in_metres_with_gaps():
     names, pos = marker_trajectories(read_vicon_csv(DEV_TRAJ))
     assert names == ["Angelica:HV", "Angelica:CM_E", "Angelica:CL_E", "Angelica:ELAST_DP"]
@@ -148,7 +133,6 @@ def test_real_trajectories_positions_in_metres_with_gaps():
     assert_same_markers(DEV_TRAJ)
 
 
-@needs_real
 def test_real_model_outputs_crlf_every_value():
     assert b"\r\n" in MODEL.read_bytes()
     export = read_vicon_csv(MODEL)
@@ -170,13 +154,11 @@ def test_real_model_outputs_crlf_every_value():
         marker_trajectories(export)
 
 
-@needs_real
 def test_real_c3d_is_rejected():
     with pytest.raises(ValueError, match=r"vicon_static_trial\.c3d: line 1: binary"):
         read_vicon_csv(C3D)
 
 
-@needs_real
 def test_summary_of_real_export_is_json_and_matches_text():
     summary = json.loads(json.dumps(summarize_vicon_csv(DEV_TRAJ)))
     by_name = {s["name"]: s for s in summary["sections"]}
@@ -304,7 +286,6 @@ def test_point_missing_one_coordinate_is_nan_in_all_three(tmp_path):
     np.testing.assert_allclose(pos[1, 0], EXPECTED_M[1, 0], rtol=1e-15)
 
 
-@needs_real
 def test_three_sections_keep_their_own_rates_and_columns(tmp_path):
     dev = DEV_TRAJ.read_text().splitlines()[:11]
     model = MODEL.read_text().splitlines()[:8]
