@@ -5,7 +5,7 @@ Per source ``s`` of :func:`write_results` (``measured``, ``simulated``, ...):
 ``/s/scene`` (``foxglove.SceneUpdate``: a cube per body, a sphere for a body
 whose orientation is unknown, a line strip per rope) and ``/s/markers``
 (``foxglove.PointCloud``, FLOAT64 x, y, z), JSON-encoded with JSON schemas.
-``world`` is the inertial frame of DESIGN 3 unchanged: K (z) points DOWN, so
+``world`` is the inertial frame of docs/conventions.md unchanged: K (z) points DOWN, so
 Foxglove's z-up 3D view shows the rig upside down unless the view is flipped.
 Chunks are flushed as they fill, like session files (``_mcap_io``).
 """

@@ -62,7 +62,7 @@ TAKES = {  # take -> (topic, markers per frame or None for the trial's own)
 CHUNK_SIZE = 256 * 1024
 _TAKE_GAP_NS = 1_000_000_000
 _MAGIC = b"\x89MCAP0\r\n"
-# Words that would reveal the generating physics (DESIGN 7); metadata is checked for them.
+# Words that would reveal the generating physics (docs/interfaces.md); metadata is checked for them.
 _TRUTH_WORDS = ("truth", "physics", "mechanism", "chain_link_friction", "pulley_friction",
                 "pulley_inertia", "rope_bending_damping", "aero_drag")
 

@@ -1,6 +1,6 @@
 """Session directories: created complete or not at all.
 
-A session directory (DESIGN 7) holds ``capture.mcap`` and ``maneuver.csv``
+A session directory (docs/interfaces.md) holds ``capture.mcap`` and ``maneuver.csv``
 (the reel table the trial ran, the same table the MCAP's session info
 carries), and may hold a VICON-style ``markers.csv``. Directories are
 written under a temporary sibling name and renamed into place when every

@@ -174,7 +174,7 @@ def body_boxes(table, rig, bodies=None):
     Parameters
     ----------
     table : pandas.DataFrame
-        Trajectory table (DESIGN 3) with ``<body>.x y z roll pitch yaw``.
+        Trajectory table (docs/conventions.md) with ``<body>.x y z roll pitch yaw``.
     rig : Rig
     bodies : sequence of str, optional
         Bodies to box; by default every rig body the table has a pose for.
@@ -484,7 +484,7 @@ def synthesize_session(result, cameras, seed=0, noise_px=DEFAULTS["noise_px"], d
 def write_truth(folder, truth, physics):
     """Write what only the truth knows into an existing folder, file by file atomically.
 
-    Files: ``trajectories.csv`` (the run's trajectory table, DESIGN 3 columns
+    Files: ``trajectories.csv`` (the run's trajectory table, docs/conventions.md columns
     first), ``cameras.json`` (the true cameras, ``save_cameras`` format),
     ``physics.json`` (``physics`` plus the capture settings) and
     ``markers.csv`` (true 3D marker positions, VICON Trajectories CSV in mm,

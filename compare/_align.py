@@ -10,7 +10,7 @@ positive offset means the measurement started earlier (its events come
 later on its own clock), and measured time ``t`` maps to ``t - offset`` on
 the simulation's clock.
 
-Tables are pandas DataFrames with a ``time`` column (s) and the DESIGN 3
+Tables are pandas DataFrames with a ``time`` column (s) and the docs/conventions.md
 channels; functions never modify their inputs.
 """
 
@@ -44,7 +44,7 @@ RATE_FRACTION = 0.5
 
 
 def read_trajectory_table(path, side="trajectory"):
-    """Read a trajectory-table CSV (DESIGN 3) and check its time column.
+    """Read a trajectory-table CSV (docs/conventions.md) and check its time column.
 
     Parameters
     ----------
@@ -98,7 +98,7 @@ def channel_status(measured, simulated, channels=None):
     ----------
     measured, simulated : pandas.DataFrame
     channels : sequence of str, optional
-        Channels to consider; default every DESIGN 3 channel.
+        Channels to consider; default every docs/conventions.md channel.
 
     Returns
     -------

@@ -1,7 +1,7 @@
 """Measured against simulated: every metric, the peak table, free decay, verdicts.
 
 :func:`compare_tables` is the whole comparison of two trajectory tables
-(DESIGN 3) as one JSON-ready dictionary; :func:`discretization_study`
+(docs/conventions.md) as one JSON-ready dictionary; :func:`discretization_study`
 re-runs the model at the paper's four discretization levels (Fig. 21).
 
 Tolerances live in ``TOLERANCES`` below, with the reasoning for each. A
@@ -339,7 +339,7 @@ def compare_tables(measured, simulated, time_offset="auto", free_decay_start=Non
     Parameters
     ----------
     measured, simulated : pandas.DataFrame
-        Trajectory tables (DESIGN 3): ``time`` (s) and ``<entity>.<quantity>``
+        Trajectory tables (docs/conventions.md): ``time`` (s) and ``<entity>.<quantity>``
         channels in SI units; extra columns are allowed.
     time_offset : "auto" or float
         ``t_measured - t_simulated`` (s). "auto": estimated from the rope

@@ -527,7 +527,7 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     Parameters
     ----------
     measured : pandas.DataFrame
-        Measured trajectory table (DESIGN 3), any clock: aligned to the
+        Measured trajectory table (docs/conventions.md), any clock: aligned to the
         simulation from the rope lengths.
     maneuver : Maneuver, optional
         The reel table of the recording (dig maneuver by default).
@@ -554,7 +554,7 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         ``window``, ``t_start``, ``t_end``, ``score`` (structured RMS over
         its threshold), ``rms``, ``frequency_hz``, ...); ``mismatch_after``
         (the same for the verdict's model); ``hypotheses`` ranked by held-out
-        improvement, best first: ``name``, ``parameters`` (DESIGN 7 units),
+        improvement, best first: ``name``, ``parameters`` (docs/interfaces.md units),
         ``main_parameter``, ``uncertainty``, ``rms_before`` and
         ``rms_after`` (held-out RMS residual in units of the measurement
         noise, 1 = noise), ``improvement`` (held-out chi2 drop),
@@ -614,8 +614,8 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     ctx = {"rig": rig, "maneuver": maneuver, "discretization": discretization, "duration": duration,
            "rate_hz": rate, "initial_state": nominal_run.states[0], "time": time, "channels": channels,
            "nominal_dt": float(nominal_run.dt), "parameters": tuple(rig.tolerances),
-           # The recording's mass centres are the rig file's (``channels_on``).
-           "reported_cg": {name: body.cg_body for name, body in rig.bodies.items()}}
+           # The recording was reconstructed with this rig's geometry (``channels_on``).
+           "reported_rig": rig}
     nominal_sim = np.column_stack([np.interp(time, nominal_run.time, np.asarray(nominal_table[c], float))
                                    for c in channels])
 

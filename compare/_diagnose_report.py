@@ -204,7 +204,7 @@ def _profile_page(pdf, doc):
         ax.set_title(f"{h['name']}: {h['main_parameter']} = {_f(p, '.4g')}; held-out RMS {nominal:.3f} -> "
                      f"{h['rms_after']:.3f} noise units; score {h['score']:.2f}", fontsize=8)
         ax.set_ylabel("delta chi2 (dotted: -threshold)")
-    ax.set_xlabel("main parameter (DESIGN 7 units)")
+    ax.set_xlabel("main parameter (docs/interfaces.md units)")
     fig.subplots_adjust(hspace=0.6, top=0.93, bottom=0.06)
     pdf.savefig(fig)
 

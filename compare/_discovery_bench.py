@@ -218,7 +218,7 @@ def _calibration_errors(doc, coords):
     return out
 
 
-def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, progress=None):
+def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, progress=None, keep=None):
     """Run the blind discovery benchmark.
 
     Parameters
@@ -236,6 +236,9 @@ def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, pr
         folder by default.
     progress : callable, optional
         Called with one line per finished case.
+    keep : str, optional
+        A folder where every case's ``diagnosis.json`` is kept
+        (``case<seed>.json``).
 
     Returns
     -------
@@ -256,13 +259,13 @@ def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, pr
     try:
         if workers <= 1:
             for c in cases:
-                results.append(_run_case(*c, workdir=workdir))
+                results.append(_run_case(*c, workdir=workdir, keep=keep))
                 if progress:
                     progress(_case_line(results[-1]))
         else:
             method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
             with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method)) as pool:
-                futures = [pool.submit(_run_case, *c, workdir=workdir) for c in cases]
+                futures = [pool.submit(_run_case, *c, workdir=workdir, keep=keep) for c in cases]
                 for f in futures:
                     results.append(f.result())
                     if progress:
@@ -425,7 +428,8 @@ def bench_command(args):
     """``dragline bench discovery``: returns (report, summary lines) like the other benches.
 
     Reads ``args.seed`` and, when the bench command has them, ``args.quick``,
-    ``args.limits`` (the ``LIMIT_CASES`` instead) and ``args.workers``.
+    ``args.limits`` (the ``LIMIT_CASES`` instead), ``args.workers`` and
+    ``args.keep_diagnoses``.
     """
     import sys
 
@@ -437,5 +441,6 @@ def bench_command(args):
     report = bench_discovery(cases=cases,
                              workers=getattr(args, "workers", 2) or 2, seed=args.seed,
                              quick=bool(getattr(args, "quick", False)),
-                             progress=lambda line: print(line, file=sys.stderr))
+                             progress=lambda line: print(line, file=sys.stderr),
+                             keep=getattr(args, "keep_diagnoses", None))
     return report, summary_lines(report)

@@ -362,29 +362,54 @@ def simulate_channels(name, main, value, ctx=None):
 def channels_on(result, ctx):
     """A simulation's dynamic channels as the recording reports them, on the problem's time base, (n, c).
 
-    A recording's body positions are mass centres reconstructed from the
-    markers with the rig file's mass-centre offsets (``ctx["reported_cg"]``,
-    body -> (3,) m): a marker-fixed point. A simulated rig whose mass centre
-    moved (model updating) is read at that same point, not at its own mass
-    centre, or a 5 mm change of the bucket's mass centre would show as 4 mm
-    of bucket.x swinging with the pitch that no parameter could fit.
+    A recording is reconstructed with the rig file (``ctx["reported_rig"]``):
+    a body's position is its mass centre placed from the markers with the
+    file's mass-centre offset, a marker-fixed point; a rope's length is
+    measured from the file's fixed point (the boom pulley for the hoist
+    rope, plus the fixed path from its reel). A simulated rig whose mass
+    centre or fixed points moved (model updating) is read the same way, not
+    at its own mass centre and pulley: else a 5 mm change of the bucket's
+    mass centre shows as 4 mm of bucket.x swinging with the pitch, and a
+    moved boom pulley as a hoist rope 17 mm long, that no parameter fits.
     """
     t = np.asarray(result.time, float)
     table = result.table
-    shift = {}
-    for body, cg in (ctx.get("reported_cg") or {}).items():
-        moved = np.asarray(cg, float) - np.asarray(result.model.rig.bodies[body].cg_body, float)
-        if np.any(moved != 0.0):
-            T = body_to_inertial(*(np.asarray(table[f"{body}.{a}"], float) for a in ("roll", "pitch", "yaw")))
-            shift[body] = T @ moved
+    reported = ctx.get("reported_rig")
     columns = []
     for ch in ctx["channels"]:
         values = np.asarray(table[ch], float)
-        body, _, quantity = ch.partition(".")
-        if body in shift and quantity in ("x", "y", "z"):
-            values = values + shift[body][:, "xyz".index(quantity)]
+        if reported is not None:
+            values = values + _reading_shift(result, table, reported, ch)
         columns.append(np.interp(ctx["time"], t, values))
     return np.column_stack(columns)
+
+
+def _reading_shift(result, table, reported, channel):
+    """What reading a simulated channel with the ``reported`` rig's geometry adds to it (SI, per record)."""
+    rig = result.model.rig
+    name, _, quantity = channel.partition(".")
+    if name in rig.bodies and quantity in ("x", "y", "z") and name in reported.bodies:
+        moved = np.asarray(reported.bodies[name].cg_body, float) - np.asarray(rig.bodies[name].cg_body, float)
+        if not np.any(moved):
+            return 0.0
+        T = body_to_inertial(*(np.asarray(table[f"{name}.{a}"], float) for a in ("roll", "pitch", "yaw")))
+        return (T @ moved)[:, "xyz".index(quantity)]
+    if quantity == "length" and name in rig.ropes and name in reported.ropes:
+        spec = rig.ropes[name]
+        span = (spec.ring or spec.start).partition(".")[2]
+        start = spec.start.partition(".")[2]
+        if span not in rig.fixed_points or start not in rig.fixed_points:
+            return 0.0
+        f_sim, f_rep = (np.asarray(r.fixed_points[span], float) for r in (rig, reported))
+        s_sim, s_rep = (np.asarray(r.fixed_points[start], float) for r in (rig, reported))
+        if np.array_equal(f_sim, f_rep) and np.array_equal(s_sim, s_rep):
+            return 0.0
+        nodes = result.rope_nodes(name)
+        # The first node past the span's start: the rope leaves the ring (or the reel) towards it.
+        k = int(np.argmin(np.linalg.norm(nodes[0] - f_sim, axis=1))) + 1
+        path = np.linalg.norm(f_rep - s_rep) - np.linalg.norm(f_sim - s_sim) if spec.ring else 0.0
+        return path + np.linalg.norm(nodes[:, k] - f_rep, axis=1) - np.linalg.norm(nodes[:, k] - f_sim, axis=1)
+    return 0.0
 
 
 def _grid_job(name, main, value):

@@ -2,11 +2,12 @@
 
 Source: "Comparison of measured and simulated motion of a scaled dragline
 excavation system", section 4 ("Dig maneuver results") and the captions of
-Figs. 8-21 (shared/seed/000_c57abc241cbb5c97.txt); the peak numbers are also
-transcribed in shared/data/paper_parameters.toml, table ``[dig_maneuver]``.
+Figs. 8-21; the peak numbers are also transcribed independently, by hand,
+in tests/data/paper/paper_parameters.toml (table ``[dig_maneuver]``), and a
+test checks the two agree.
 
 The paper reports values, not their sign convention: its peaks are copied
-here exactly as printed (m/s, rad/s, s). Our tables follow DESIGN 3 (K points
+here exactly as printed (m/s, rad/s, s). Our tables follow docs/conventions.md (K points
 down, so ``vz > 0`` is downward motion), and the report shows the paper's
 numbers beside ours without re-signing them.
 """
@@ -23,8 +24,7 @@ __all__ = [
 ]
 
 PAPER_SOURCE = (
-    "seed paper section 4 (Dig maneuver results), "
-    "shared/data/paper_parameters.toml [dig_maneuver]"
+    "seed paper section 4 (Dig maneuver results)"
 )
 
 # Peak table of section 4: (value, time) for the paper's measurement and its
@@ -58,7 +58,7 @@ DIG_REELS_STOP = 6.5
 SPREADER_BAR_X_OFFSET = 0.051
 
 # Figs. 8-20: (figure label, channel, the paper's caption, y-axis label).
-# Angles and angular rates are plotted in degrees (DESIGN 3), everything else
+# Angles and angular rates are plotted in degrees (docs/conventions.md), everything else
 # in SI units.
 FIGURES = (
     ("8", "hoist_rope.length", "Measured and predicted hoist rope length vs. time.",

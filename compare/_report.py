@@ -171,7 +171,7 @@ def _peak_lines(metrics):
         f"(the paper: a consistent offset of about {1000 * sb['paper']:.0f} mm)."
     )
     lines.append(
-        "Signs follow DESIGN 3 (K points down: vz > 0 is downward). The paper does not state its plots' "
+        "Signs follow docs/conventions.md (K points down: vz > 0 is downward). The paper does not state its plots' "
         "sign convention; its numbers are as printed."
     )
     return lines
@@ -287,7 +287,7 @@ def _decay_lines(metrics):
         f"Free decay after the reels stop at {reels['time']:.2f} s ({reels['method']}).",
         "Dominant mode by matrix pencil (damped frequency f, viscous-equivalent damping ratio zeta, amplitude at the",
         "window's start); envelope law of the half-cycle extremes by AIC with its Akaike weight: exponential = viscous,",
-        "linear = Coulomb friction, hyperbolic = quadratic drag (DESIGN 6). 'undetermined' = fewer than 6 extremes.",
+        "linear = Coulomb friction, hyperbolic = quadratic drag (docs/diagnosis.md). 'undetermined' = fewer than 6 extremes.",
         "",
         f"{'Channel':<21}{'Side':<11}{'f (Hz)':<9}{'zeta':<8}{'Amplitude':<13}Envelope (confidence)",
     ]
@@ -322,7 +322,7 @@ def _decay_summary_lines(summary):
         counts = ", ".join(f"{k} {v}" for k, v in summary[f"{side}_shapes"].items())
         lines.append(f"Envelope laws, {'predicted' if side == 'simulated' else side}: {counts}.")
     lines.append(
-        "Reading (DESIGN 6): more measured damping at the same frequency is damping the model lacks, and the "
+        "Reading (docs/diagnosis.md): more measured damping at the same frequency is damping the model lacks, and the "
         "measured envelope law names its kind; a frequency shift without extra decay points at added inertia."
     )
     return lines

@@ -20,7 +20,7 @@ from ._paper import FIG21_CAPTION, FIGURES
 __all__ = ["figure_pages", "free_decay_page", "discretization_page", "PLOT_UNITS", "ERROR_UNITS"]
 
 DEG = 180.0 / math.pi
-# Plotted values: (scale from SI, unit). Angles and rates in degrees (DESIGN 3).
+# Plotted values: (scale from SI, unit). Angles and rates in degrees (docs/conventions.md).
 PLOT_UNITS = {
     "position": (1.0, "m"),
     "angle": (DEG, "deg"),

@@ -6,7 +6,7 @@ verdict names a mechanism, every other candidate is fitted again with the
 named one (at its fitted value) in every simulation, scored on held-out
 data against that model, and tested against its own null threshold (the
 same surrogates, made from the two-mechanism model's residual). The
-verdict stays the named mechanism (DESIGN 7 allows one name); a
+verdict stays the named mechanism (docs/interfaces.md: one name); a
 significant second one is reported beside it.
 """
 

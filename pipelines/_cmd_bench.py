@@ -22,6 +22,8 @@ def add_parser(sub):
                    help="discovery: truth rigs drawn within the rig's tolerances, simulated finer than the "
                         "diagnosis, with out-of-menu physics among the cases")
     p.add_argument("--workers", type=int, default=2, help="discovery: parallel processes")
+    p.add_argument("--keep-diagnoses", metavar="DIR",
+                   help="discovery: keep every case's diagnosis.json in DIR (case<seed>.json)")
 
 
 def _simulate(args):

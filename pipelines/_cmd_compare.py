@@ -18,7 +18,7 @@ def add_parser(sub):
     p = sub.add_parser(
         "compare",
         help="compare measured with simulated motion; write a PDF report and JSON metrics",
-        description="Compare a measured with a simulated trajectory table (DESIGN 3): align the clocks "
+        description="Compare a measured with a simulated trajectory table (docs/conventions.md): align the clocks "
         "from the rope lengths, compute per-channel metrics, the paper's peak table and the free decay "
         "after the reels stop, and write a PDF report and/or JSON metrics.",
     )

@@ -1,7 +1,7 @@
 """The ``dragline`` command.
 
 Every subcommand lives in its own module ``pipelines/_cmd_<name>.py`` with
-``add_parser(subparsers)`` and ``run(args) -> int``. Exit codes (DESIGN 7):
+``add_parser(subparsers)`` and ``run(args) -> int``. Exit codes (docs/interfaces.md):
 0 success, 2 bad input or usage (one line on stderr, no traceback),
 1 internal failure.
 """

@@ -1,6 +1,6 @@
 """The assembled reconstruction: 2D centroids or 3D markers -> trajectory table.
 
-Stages (paper section 3.3, DESIGN 5), each a function of the ``reconstruct``
+Stages (paper section 3.3), each a function of the ``reconstruct``
 package:
 
 1. **Triangulation** (``reconstruct_markers``): every camera that sees a
@@ -25,7 +25,7 @@ package:
    paper's "linear combination of the marker points"). ``method="svd"`` is
    the least-squares rigid fit over all visible markers. The mass centre is
    ``origin + T @ cg_body`` (Eq. 10); Euler angles from ``T`` by the Eq. 11
-   inversion of DESIGN 3.
+   inversion of docs/conventions.md.
 4. **Two-marker bodies** (the drag cluster) give position only: a body point
    is the markers' midpoint plus its offset along the marker axis; a point
    off that axis (the drag rope attachment, 3 cm forward of the cluster) is
@@ -381,7 +381,7 @@ def _rates(x, dt, smoother, derivative=finite_difference):
 
 def trajectory_from_markers(names, positions, rate_hz, rig=None, method="paper",
                             smoothing="running_average", max_gap=10, start_time=0.0, max_deviation=0.02):
-    """The trajectory table (DESIGN 3) from labelled 3D markers (stages 2-6).
+    """The trajectory table (docs/conventions.md) from labelled 3D markers (stages 2-6).
 
     Parameters
     ----------

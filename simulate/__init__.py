@@ -1,7 +1,7 @@
 """The dragline simulator: the seed paper's lumped-mass dynamic model.
 
 ``simulate()`` runs a maneuver from static equilibrium and returns a
-``SimulationResult`` whose ``table`` is the trajectory table of DESIGN 3.
+``SimulationResult`` whose ``table`` is the trajectory table of docs/conventions.md.
 """
 
 from ._kinematics import (

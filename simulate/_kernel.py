@@ -3,7 +3,7 @@
 Everything here works on the flat arrays that ``_model.assemble`` builds
 (packed into one tuple, ``m``, in the order of ``_model.KERNEL_FIELDS``).
 
-State vector layout (``_model.StateLayout``):
+State vector layout (the offsets ``Model.o_part``, ``o_vel``, ``o_force``, ``o_ring`` in ``_model``):
   bodies    12 each: x y z, vx vy vz (inertial, m, m/s), roll pitch yaw (rad),
             p q r (body-frame rates, rad/s)
   particles 3 P positions, then 3 P velocities

@@ -1,6 +1,6 @@
 """Euler angles, the body-to-inertial matrix of Eq. 11, and body rates.
 
-Sequence (seed paper section 2.1, DESIGN 3): from the inertial frame rotate
+Sequence (seed paper section 2.1, docs/conventions.md): from the inertial frame rotate
 pitch ``theta`` about J, then roll ``phi`` about the new I, then yaw ``psi``
 about the new K::
 
@@ -61,7 +61,7 @@ def euler_from_matrix(T):
     """Invert Eq. 11: Euler angles from a body-to-inertial matrix.
 
     Derived from Eq. 11 itself rather than the paper's Eqs. 19-21, which read
-    the marker-frame matrix transposed (DESIGN 3). The atan2 forms keep full
+    the marker-frame matrix transposed (docs/conventions.md). The atan2 forms keep full
     quadrant information and stay accurate near +-90 deg of pitch; only roll
     = +-90 deg (gimbal lock of this sequence) is singular.
 

@@ -83,7 +83,7 @@ class Maneuver:
 
 
 def dig_maneuver():
-    """The seed paper's dig maneuver (section 4, as read in DESIGN 4.8).
+    """The seed paper's dig maneuver (section 4, as read in docs/model.md).
 
     Phase 1, 2.5 s: hoist pays out 0.36 m/s, drag winds in 0.30 m/s; phase 2,
     1 s: hoist still, drag 0.61 m/s; phase 3, 2 s: hoist 0.30 m/s, drag

@@ -8,7 +8,7 @@ between the sides is fixed for a run (proportional to the sides' initial
 spans). A side between two fixed points (the hoist rope from its reel to the
 boom pulley) is one massless straight element: the fixed reel-to-boom path.
 
-Reels (DESIGN 4.5): the maneuver's reel table sets a reel rope's *total*
+Reels (docs/model.md): the maneuver's reel table sets a reel rope's *total*
 unstretched length from the reel; for the hoist rope the boom pulley's ring
 state splits it between the fixed reel-to-boom path and the modelled span,
 so the span's length is the reel length minus the (stretching) fixed path.

@@ -4,7 +4,7 @@ Each mechanism is a small object with a name, parameters in SI units and an
 ``apply(model)`` that sets the coefficients the compiled kernel reads (all
 zero in the nominal model, so switching a mechanism on never changes the
 force assembly). ``parse_physics("NAME:PARAM=VALUE,...")`` is how the
-command line names them (DESIGN 7).
+command line names them (docs/interfaces.md).
 """
 
 from __future__ import annotations

@@ -82,7 +82,7 @@ class RopeSpec:
 
 @dataclass(frozen=True)
 class Rig:
-    """A whole rig. ``bodies`` follow DESIGN's order (then any others); ``ropes`` the file's."""
+    """A whole rig. ``bodies`` follow the paper's order (bucket, spreader bar, hoist cluster, drag cluster) (then any others); ``ropes`` the file's."""
 
     name: str
     g: float
@@ -194,7 +194,7 @@ def load_rig(path=None):
 
 def _rig_from_doc(doc, source):
     bodies = {}
-    # the dragline's bodies first, in DESIGN's order; other rigs may name their own
+    # the dragline's bodies first, in the paper's order; other rigs may name their own
     doc_bodies = doc.get("bodies", {})
     names = [b for b in BODIES if b in doc_bodies] + [b for b in doc_bodies if b not in BODIES]
     for name in names:

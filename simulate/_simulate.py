@@ -48,7 +48,7 @@ class SimulationResult:
 
     @property
     def table(self):
-        """The trajectory table (DESIGN 3), plus tension and reel columns."""
+        """The trajectory table (docs/conventions.md), plus tension and reel columns."""
         return trajectory_table(self.model, self.time, self.states)
 
     def rope_nodes(self, segment):
@@ -130,7 +130,7 @@ def element_tensions(model, time, states, segment):
 
 
 def trajectory_table(model, time, states):
-    """Trajectory table of a run (columns of DESIGN 3 first, then extras)."""
+    """Trajectory table of a run (columns of docs/conventions.md first, then extras)."""
     cols = {"time": time}
     for b, name in enumerate(model.body_names):
         o = 12 * b

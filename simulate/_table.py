@@ -1,6 +1,6 @@
 """The one trajectory-table schema shared by measured and simulated data.
 
-DESIGN 3: a pandas DataFrame (or CSV) with a ``time`` column (s) and columns
+docs/conventions.md: a pandas DataFrame (or CSV) with a ``time`` column (s) and columns
 ``<entity>.<quantity>``. Bodies carry mass-centre position ``x y z`` (m),
 Euler angles ``roll pitch yaw`` (rad), inertial velocity ``vx vy vz`` (m/s)
 and body rates ``p q r`` (rad/s); ropes carry ``length`` (m). Extra columns

@@ -2,7 +2,7 @@
 
 The ropes' axial modes are the fastest motion in the model (kHz for the
 baseline's short elements) and set the explicit step; accuracy needs far
-less (DESIGN 4: the baseline's error at this step is micrometres). Two
+less (docs/model.md: the baseline's error at this step is micrometres). Two
 estimates of the fastest mode:
 
 - a Gershgorin bound on M^-1 K at the stiffest configuration the maneuver
