@@ -48,7 +48,6 @@ import os
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from ..simulate import (
     DISCRETIZATION_LEVELS,
@@ -247,26 +246,18 @@ def _design(problem, sim, sensitivities):
     return np.stack([col.ravel() for col in cols], axis=1)
 
 
-def _solve(problem, X, prior_var, prior_mean, residual, bounds=None):
-    """Least squares X a = r with the prior N(prior_mean, prior_var), within ``bounds``.
+def _solve(problem, X, prior_var, prior_mean, residual):
+    """Least squares X a = r with the prior N(prior_mean, prior_var).
 
     Returns
     -------
     a : ndarray
     H_inv : ndarray
-        The inverse of the posterior's Hessian (the bounds ignored).
+        The inverse of the posterior's Hessian.
     """
     z = (np.where(problem.valid, residual, 0.0) * np.sqrt(problem.W)).ravel()
-    H = X.T @ X + np.diag(1.0 / prior_var)
-    H_inv = np.linalg.inv(H)
-    if bounds is None:
-        return H_inv @ (X.T @ z + prior_mean / prior_var), H_inv
-    # The normal equations as a small square system (the same minimiser),
-    # solved with the bounds: H = R^T R, so ||R a - R^-T g||^2 is the objective.
-    g = X.T @ z + prior_mean / prior_var
-    R = np.linalg.cholesky(H).T
-    target = np.linalg.solve(R.T, g)
-    return lsq_linear(R, target, bounds=bounds, method="bvls").x, H_inv
+    H_inv = np.linalg.inv(X.T @ X + np.diag(1.0 / prior_var))
+    return H_inv @ (X.T @ z + prior_mean / prior_var), H_inv
 
 
 def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, progress=None, start=None):
@@ -503,27 +494,21 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
             fit.n_sims += 1
         return coords, cache[key]
 
-    def residual(xa):
+    n_rows = []
+
+    def fun(xa):
         coords, (sim, state) = simulated(xa)
         if sim is None:
-            return None
-        obj, chi2, nuis, H_inv = _objective_at(problem, sim, coords, tol, offset_sd, errs)
+            # A failed simulation: a step the trust region rejects (None only at the start).
+            return np.full(n_rows[0], 1e6) if n_rows else None
+        obj, chi2, nuis, _ = _objective_at(problem, sim, coords, tol, offset_sd, errs)
         if obj < best["objective"]:
             best.update(objective=obj, chi2=chi2, coords=coords, sim=sim, state=state, nuisance=nuis)
         X = _design(problem, sim, errs)
         z = (np.where(problem.valid, problem.measured - sim, 0.0) * np.sqrt(problem.W)).ravel()
-        return np.r_[z - X @ nuis, _prior_rows(nuis, coords, tol, offset_sd, errs)], X, H_inv
-
-    n_rows = []
-
-    def fun(xa):
-        out = residual(xa)
-        if out is None:
-            # A failed simulation: a step the trust region rejects (the start never fails: it was simulated).
-            return np.full(n_rows[0], 1e6) if n_rows else None
-        if not n_rows:
-            n_rows.append(len(out[0]))
-        return out[0]
+        r = np.r_[z - X @ nuis, _prior_rows(nuis, coords, tol, offset_sd, errs)]
+        n_rows[:] = [len(r)]
+        return r
 
     def jac(xa):
         coords, (sim, state) = simulated(xa)
