@@ -18,11 +18,12 @@ and the five distortion coefficients ``(k1, k2, p1, p2, k3)``.
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+
+from ._strict_json import write_json
 
 __all__ = ["Camera", "project_points", "camera_centre", "save_cameras", "load_cameras"]
 
@@ -115,10 +116,7 @@ def save_cameras(path, cameras, quality=None):
     doc = {"format": CAMERAS_FORMAT, "cameras": [c.to_dict() for c in cameras]}
     if quality is not None:
         doc["quality"] = quality
-    tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "w") as fh:
-        json.dump(doc, fh, indent=2)
-    os.replace(tmp, path)
+    write_json(path, doc, indent=2)
 
 
 def load_cameras(path):

@@ -43,6 +43,8 @@ from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
+from ._strict_json import json_text
+
 
 __all__ = [
     "CaptureSession",
@@ -168,16 +170,7 @@ def _atomic_mcap(path, fill, chunk_size):
 
 
 def _json_bytes(obj):
-    return json.dumps(obj, separators=(",", ":"), allow_nan=False,
-                      default=_json_default).encode()
-
-
-def _json_default(obj):
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    raise TypeError(f"{type(obj).__name__} is not JSON-able")
+    return json_text(obj, indent=None, separators=(",", ":")).encode()
 
 
 def _nullable(values):

@@ -38,7 +38,6 @@ session bit for bit.
 
 from __future__ import annotations
 
-import json
 import os
 
 import numpy as np
@@ -47,6 +46,7 @@ from ..simulate import body_to_inertial, marker_positions, write_trajectory_csv
 from ._cameras import camera_centre, project_points, save_cameras
 from ._lab import NOMINAL_FOCAL_PX, WAND_LENGTH, lframe_points, wand_motion
 from ._mcap_io import CaptureSession
+from ._strict_json import write_json
 from ._vicon_csv import write_vicon_csv
 
 __all__ = [
@@ -509,14 +509,7 @@ def write_truth(folder, truth, physics):
     write_trajectory_csv(paths[0], truth["table"])
     save_cameras(paths[1], truth["cameras"])
     doc = {"format": "dragline.synth_truth/1", **physics, "capture": truth["settings"]}
-    tmp = f"{paths[2]}.tmp{os.getpid()}"
-    try:
-        with open(tmp, "w") as fh:
-            json.dump(doc, fh, indent=2)
-        os.replace(tmp, paths[2])
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    write_json(paths[2], doc, indent=2)
     vicon_names = [n.replace(".", ":", 1) for n in truth["marker_names"]]
     write_vicon_csv(paths[3], vicon_names, truth["markers"], _rate_of(truth["time"]))
     return paths

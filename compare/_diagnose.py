@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..capture._strict_json import json_ready
 from ..simulate import (
     ROPE_CHANNELS,
     Maneuver,
@@ -864,9 +865,9 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
                    + (update["n_simulations"] if update else 0)},
     }
     fitted = {name: fitted_series[name] for name in fitted_series}
-    return Diagnosis(doc=_clean(doc), time=time, channels=channels, measured=M, nominal=M - r_nominal,
+    return Diagnosis(doc=json_ready(doc), time=time, channels=channels, measured=M, nominal=M - r_nominal,
                      updated=M - r0 if update is not None else None, fitted=fitted,
-                     located={"before": _clean(located), "after": _clean(located_after)})
+                     located={"before": json_ready(located), "after": json_ready(located_after)})
 
 
 def _calibration_doc(update, joint, ctx):
@@ -894,21 +895,6 @@ def _significant_updates(update, min_shift=2.0, most=4):
              and abs(e["coordinate"]) > min_shift * e["coordinate_sd"]]
     moved.sort(key=lambda e: -abs(e["shift_in_tolerances"]))
     return [e["description"] for e in moved[:most]]
-
-
-def _clean(obj):
-    """JSON-ready: numpy scalars to Python, non-finite floats to None."""
-    if isinstance(obj, dict):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return _json_number(obj)
-    return obj
 
 
 def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretization="baseline", candidates=None,

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-import json
 import os
 import sys
+
+from dragline.capture._strict_json import json_text
 
 from ._options import check_output_path
 
@@ -67,7 +68,7 @@ def run(args):
     if args.json:
         check_output_path(args.json)
     report, lines = BENCHES[args.what](args)
-    text = json.dumps(report, indent=2, default=float)
+    text = json_text(report, indent=2)
     if args.json:
         tmp = f"{args.json}.tmp{os.getpid()}"
         with open(tmp, "w") as fh:

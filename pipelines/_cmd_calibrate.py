@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 
 from dragline.capture import calibrate, read_session
 from dragline.capture._cameras import camera_centre, save_cameras
 from dragline.capture import session_file
+from dragline.capture._strict_json import json_text
 
 from ._guard import guard_outputs, session_inputs
 from ._options import check_output_path
@@ -72,7 +72,7 @@ def run(args):
     quality = {**quality, "wall_time_s": seconds, "session": path}
     save_cameras(args.out, cameras, quality)
     if args.json:
-        print(json.dumps(quality, indent=2))
+        print(json_text(quality, indent=2))
     else:
         print(_text(quality, cameras, path, seconds))
         print(f"wrote {args.out}")

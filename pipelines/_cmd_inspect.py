@@ -17,6 +17,7 @@ import pandas as pd
 from dragline.capture import read_session, summarize_mcap, summarize_vicon_csv
 from dragline.capture._cameras import camera_centre, load_cameras
 from dragline.capture._session_io import session_file
+from dragline.capture._strict_json import json_text
 
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
 
@@ -229,7 +230,7 @@ _TEXT = {"session": _mcap_text, "mcap": _mcap_text, "vicon_csv": _vicon_text, "t
 def run(args):
     summary = inspect_path(args.file)
     if args.json:
-        print(json.dumps(summary, indent=1))
+        print(json_text(summary, indent=1))
     else:
         print("\n".join(_TEXT[summary["kind"]](summary)))
     return 0

@@ -9,12 +9,12 @@ that CSV.
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 
 from dragline.capture import write_vicon_csv
 from dragline.capture._cameras import load_cameras
+from dragline.capture._strict_json import write_json
 from dragline.reconstruct._pipeline import (
     METHODS,
     SMOOTHINGS,
@@ -89,17 +89,6 @@ def _calibration(args, session_dir, session_path):
     return path, load_cameras(path)
 
 
-def _write_json(path, doc):
-    tmp = f"{path}.tmp{os.getpid()}"
-    try:
-        with open(tmp, "w") as fh:
-            json.dump(doc, fh, indent=1)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-
-
 def run(args):
     outputs = [p for p in (args.out, args.vicon_csv, args.summary_json) if p]
     for p in outputs:
@@ -142,7 +131,7 @@ def run(args):
             write_vicon_csv(args.vicon_csv, [vicon_name(n) for n in names], points, session.rate_hz)
     write_trajectory_csv(args.out, table)
     if args.summary_json:
-        _write_json(args.summary_json, summary)
+        write_json(args.summary_json, summary)
     if not args.quiet:
         for note in notes:
             print(f"dragline: note: {note}", file=sys.stderr)

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-import json
+
+from dragline.capture._strict_json import json_text
 
 
 def add_parser(sub):
@@ -39,7 +40,7 @@ def run(args):
                            force=args.force, config=config, verbose=getattr(args, "verbose", False),
                            inputs=(getattr(args, "config", None), args.maneuver))
     if args.json:
-        print(json.dumps(summary, indent=2, default=float))
+        print(json_text(summary, indent=2))
         return 0
     print(f"wrote {summary['out']}:", ", ".join(sorted(summary["files"])))
     total = sum(summary["stage_seconds"].values())

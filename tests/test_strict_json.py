@@ -1,0 +1,65 @@
+"""Every JSON the tool writes parses with a strict parser.
+
+Python's ``json`` writes ``NaN`` and ``Infinity`` unless told not to; a
+browser's ``JSON.parse`` refuses both. Before the shared writer, ``inspect
+--json`` printed them for tables with empty or non-finite cells.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dragline.capture._strict_json import json_ready, json_text, write_json
+from dragline.pipelines.cli import main
+
+CI_OUT = Path(__file__).resolve().parents[1] / "dragline-out" / "ci" / "dig_compare"
+
+
+def strict_loads(text):
+    """``json.loads`` that refuses NaN and Infinity, as JSON.parse does."""
+    def refuse(name):
+        raise ValueError(f"non-standard JSON constant {name}")
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_non_finite_numbers_are_written_as_null_and_the_input_is_kept():
+    doc = {"a": float("nan"), "b": [1.0, float("inf"), np.float32(-np.inf)], 3: np.array([0.5, np.nan]),
+           "n": np.int64(7), "flag": np.bool_(True), "path": Path("x/y.csv"), "t": (np.float64(2.5),)}
+    back = strict_loads(json_text(doc))
+    assert back == {"a": None, "b": [1.0, None, None], "3": [0.5, None], "n": 7, "flag": True,
+                    "path": os.path.join("x", "y.csv"), "t": [2.5]}
+    assert np.isnan(doc["a"]) and np.isnan(doc[3][1])  # not modified
+    assert json_ready(1e308) == 1e308  # large but finite stays a number
+
+
+def test_write_json_is_strict_and_leaves_no_temporary(tmp_path):
+    path = tmp_path / "out.json"
+    write_json(path, {"rms": np.nan, "x": [np.inf]})
+    assert strict_loads(path.read_text()) == {"rms": None, "x": [None]}
+    assert os.listdir(tmp_path) == ["out.json"]
+
+
+def test_inspect_json_of_a_table_with_non_finite_cells_is_strict(tmp_path, capsys):
+    table = tmp_path / "t.csv"
+    table.write_text("time,bucket.x\nnan,1\n0.01,inf\n0.02,3\n")
+    assert main(["inspect", "--json", str(table)]) == 0
+    doc = strict_loads(capsys.readouterr().out)
+    assert doc["time_start_s"] is None and doc["time_end_s"] == pytest.approx(0.02)
+    assert doc["nan_values"] == {"time": 1}
+
+
+def test_every_json_the_ci_run_wrote_is_strict():
+    files = sorted(CI_OUT.rglob("*.json")) if CI_OUT.exists() else []
+    if not files:
+        if os.environ.get("CI") == "true":
+            pytest.fail(f"{CI_OUT}: .ci/run must build the run before the tests")
+        pytest.skip(".ci/run builds dragline-out/ci/dig_compare")
+    names = {f.name for f in files}
+    assert {"diagnosis.json", "metrics.json", "cameras.json", "physics.json"} <= names
+    for f in files:
+        strict_loads(f.read_text())
