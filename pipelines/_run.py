@@ -21,6 +21,8 @@ import sys
 import time
 from pathlib import Path
 
+from ._config_schema import RunConfig, validate_config
+
 # The built-in lab truth: friction where the ropes slide through the ring
 # pulleys (the paper's section 4 names pulley friction among the causes). It
 # is written to OUT/truth, never into the session.
@@ -33,12 +35,8 @@ BUILTIN_TRUTH_DISCRETIZATION = "medium"
 BUILTIN_RIG_SEED = 1000
 
 
-# Options a --config file may set, with their defaults (README: "Configuration").
-DEFAULTS = {
-    "run": {"seed": 0, "study": True, "diagnose": True},
-    "simulate": {"rig": None, "maneuver": None, "discretization": "baseline"},
-    "reconstruct": {"method": "paper", "smoothing": "running_average", "max_gap": 10},
-}
+# Options a --config file may set, with their defaults (docs/schemas.md).
+DEFAULTS = RunConfig().model_dump()
 
 
 def read_config(path):
@@ -47,7 +45,8 @@ def read_config(path):
     Raises
     ------
     ValueError
-        Unreadable file, unknown section or key.
+        Unreadable file; unknown section or key; a value of the wrong type or
+        out of its range (``_config_schema``).
     """
     import tomllib
 
@@ -58,15 +57,7 @@ def read_config(path):
         raise ValueError(f"cannot read config {path}: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"config {path} is not valid TOML: {exc}") from None
-    config = {section: dict(values) for section, values in DEFAULTS.items()}
-    for section, values in doc.items():
-        if section not in DEFAULTS or not isinstance(values, dict):
-            raise ValueError(f"config {path}: unknown section [{section}] (has {', '.join(DEFAULTS)})")
-        for key, value in values.items():
-            if key not in DEFAULTS[section]:
-                raise ValueError(f"config {path}: unknown key {key!r} in [{section}]")
-            config[section][key] = value
-    return config
+    return validate_config(doc, path)
 
 
 class _Stages:

@@ -1,0 +1,145 @@
+"""The declared schema of a ``dragline run --config`` TOML file.
+
+One place states each key's type, unit and allowed range; the file is
+checked against it when it is loaded, and ``docs/schemas.md`` is generated
+from it. pydantic v2 in strict mode: a TOML string is never read as a
+boolean (``study = "no"`` was once taken as true), an integer key refuses a
+float, and an unknown key or section is an error, not a silent no-op.
+"""
+
+from __future__ import annotations
+
+from typing import Literal, Optional
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from dragline.reconstruct._pipeline import METHODS, SMOOTHINGS
+from dragline.simulate._rig import DISCRETIZATION_LEVELS
+
+__all__ = ["RunConfig", "validate_config", "config_schema_markdown"]
+
+# Longest gap a lab would ask the spline to bridge: 10 s at 100 Hz.
+MAX_GAP_LIMIT = 1000
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
+
+
+class RunSection(_Section):
+    """[run]: the whole job."""
+
+    seed: int = Field(0, ge=0, le=2**32 - 1, description="seed of the built-in synthetic session")
+    study: bool = Field(True, description="discretization study (the paper's Fig. 21) in the report")
+    diagnose: bool = Field(True, description="diagnose the missing physics after the comparison")
+
+
+class SimulateSection(_Section):
+    """[simulate]: the nominal model."""
+
+    rig: Optional[str] = Field(None, min_length=1, description="rig TOML file; default: the built-in 1/16-scale rig")
+    maneuver: Optional[str] = Field(None, min_length=1,
+                                    description='"dig" or a CSV reel table; default: the session\'s own')
+    discretization: Literal[DISCRETIZATION_LEVELS] = Field("baseline", description="nodes per rope and chain")
+
+
+class ReconstructSection(_Section):
+    """[reconstruct]: markers to bodies."""
+
+    method: Literal[METHODS] = Field("paper", description='body frames by the paper\'s Eqs. 14-16, or "svd" '
+                                                          "(rigid fit)")
+    smoothing: Literal[SMOOTHINGS] = Field("running_average", description="the paper's 12-sample average, "
+                                                                          "Savitzky-Golay or none")
+    max_gap: int = Field(10, ge=0, le=MAX_GAP_LIMIT, description="frames: longer gaps stay NaN")
+
+
+class RunConfig(_Section):
+    """A ``dragline run --config`` file; every section and key is optional."""
+
+    run: RunSection = RunSection()
+    simulate: SimulateSection = SimulateSection()
+    reconstruct: ReconstructSection = ReconstructSection()
+
+
+def _expected(err):
+    ctx = err.get("ctx") or {}
+    kind = err["type"]
+    if kind == "extra_forbidden":
+        return "no such key (see docs/schemas.md)"
+    if kind == "literal_error":
+        return f"one of {ctx.get('expected')}"
+    bound = {"greater_than_equal": ">=", "less_than_equal": "<=", "greater_than": ">", "less_than": "<"}
+    if kind in bound:
+        return f"a value {bound[kind]} {next(iter(ctx.values()))}"
+    if kind == "string_too_short":
+        return "a non-empty string"
+    if kind in ("bool_type", "int_type", "string_type", "model_type", "dict_type"):
+        return {"bool_type": "true or false", "int_type": "an integer", "string_type": "a string",
+                "model_type": "a table", "dict_type": "a table"}[kind]
+    return err["msg"].lower()
+
+
+def validate_config(doc, path):
+    """The checked configuration of TOML document ``doc`` read from ``path``.
+
+    Returns
+    -------
+    dict
+        ``{section: {key: value}}`` with every default filled in.
+
+    Raises
+    ------
+    ValueError
+        One line naming the file, the key, the value and what was expected.
+    """
+    try:
+        return RunConfig.model_validate(doc).model_dump()
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        loc = err["loc"]
+        where = f"[{loc[0]}]" + (f" {'.'.join(map(str, loc[1:]))}" if len(loc) > 1 else "")
+        if len(loc) == 1 and err["type"] == "extra_forbidden":
+            raise ValueError(f"config {path}: unknown section [{loc[0]}] "
+                             f"(has {', '.join(RunConfig.model_fields)})") from None
+        if len(loc) == 2 and err["type"] == "extra_forbidden":
+            raise ValueError(f"config {path}: unknown key {loc[1]!r} in [{loc[0]}]") from None
+        raise ValueError(f"config {path}: {where} = {err['input']!r}: expected {_expected(err)}") from None
+
+
+def _allowed(field):
+    meta = {type(m).__name__: m for m in field.metadata}
+    ann = field.annotation
+    if getattr(ann, "__origin__", None) is Literal:
+        return ", ".join(f'"{a}"' for a in ann.__args__)
+    parts = []
+    if "Ge" in meta:
+        parts.append(f">= {meta['Ge'].ge}")
+    if "Le" in meta:
+        parts.append(f"<= {meta['Le'].le}")
+    if "MinLen" in meta:
+        parts.append("non-empty")
+    return ", ".join(parts) or "-"
+
+
+def _type_name(field):
+    ann = field.annotation
+    if getattr(ann, "__origin__", None) is Literal:
+        return "string"
+    if ann is bool:
+        return "boolean"
+    if ann is int:
+        return "integer"
+    return "string or absent" if "Optional" in str(ann) or "None" in str(ann) else "string"
+
+
+def config_schema_markdown():
+    """The config schema as a Markdown table (``docs/schemas.md`` holds this text)."""
+    lines = ["| key | type | default | allowed | meaning |", "|---|---|---|---|---|"]
+    for section, sfield in RunConfig.model_fields.items():
+        for key, field in sfield.annotation.model_fields.items():
+            default = "absent" if field.default is None else repr(field.default).replace("'", '"')
+            if isinstance(field.default, bool):
+                default = str(field.default).lower()
+            lines.append(f"| `[{section}] {key}` | {_type_name(field)} | {default} | {_allowed(field)} | "
+                         f"{field.description} |")
+    return "\n".join(lines) + "\n"
