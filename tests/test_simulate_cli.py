@@ -77,6 +77,12 @@ def test_bad_maneuver_tables_exit_2_with_one_line(tmp_path, capsys, rows, messag
         (["--maneuver", "/nonexistent/m.csv"], "does not exist"),
         (["--rig", "/nonexistent/rig.toml"], "cannot read rig"),
         (["--duration", "-1"], "duration must be positive"),
+        # Work sized from the input is refused with the figure it would need
+        # (these ran for hours or until the kernel killed them).
+        (["--dt", "1e-12"], "needs 1e+13 steps"),
+        (["--dt", "nan"], "--dt must be positive"),
+        (["--rate", "1e9"], "2.61e+04 GiB"),
+        (["--duration", "inf"], "must be finite"),
     ],
 )
 def test_bad_options_exit_2_with_one_line(tmp_path, capsys, args, message):
