@@ -43,6 +43,7 @@ from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
+from ._session_schema import SESSION_FORMAT, check_session_info
 from ._strict_json import json_text
 
 
@@ -53,7 +54,6 @@ __all__ = [
     "summarize_mcap",
 ]
 
-SESSION_FORMAT = "dragline.session/1"
 SESSION_FILE = "capture.mcap"
 INFO_TOPIC = "/session/info"
 TAKES = {  # take -> (topic, markers per frame or None for the trial's own)
@@ -553,6 +553,7 @@ def read_session(path):
     info, frames, scan = _read_session_file(path)
     if info is None:
         raise ValueError(f"{path}: no session info ({INFO_TOPIC} missing or lost)")
+    check_session_info(info, path)
     arrays, report = _assemble(path, info, frames, scan)
     maneuver = {k: np.array(v, dtype=float) for k, v in info["maneuver"].items()}
     lpts = info["lframe_points"]
@@ -602,6 +603,7 @@ def summarize_mcap(path):
                     "no messages; only the file's summary/footer is incomplete"
                     if scan["data_complete"] else "messages after the last complete chunk")}
     if info is not None:
+        check_session_info(info, path)
         arrays, report = _assemble(path, info, frames, scan)
         unseen = {}
         for take, arr in arrays.items():

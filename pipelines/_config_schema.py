@@ -13,6 +13,7 @@ from typing import Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from dragline.capture._schema_tools import describe_validation_error, fields_markdown
 from dragline.reconstruct._pipeline import METHODS, SMOOTHINGS
 from dragline.simulate._rig import DISCRETIZATION_LEVELS
 
@@ -61,24 +62,6 @@ class RunConfig(_Section):
     reconstruct: ReconstructSection = ReconstructSection()
 
 
-def _expected(err):
-    ctx = err.get("ctx") or {}
-    kind = err["type"]
-    if kind == "extra_forbidden":
-        return "no such key (see docs/schemas.md)"
-    if kind == "literal_error":
-        return f"one of {ctx.get('expected')}"
-    bound = {"greater_than_equal": ">=", "less_than_equal": "<=", "greater_than": ">", "less_than": "<"}
-    if kind in bound:
-        return f"a value {bound[kind]} {next(iter(ctx.values()))}"
-    if kind == "string_too_short":
-        return "a non-empty string"
-    if kind in ("bool_type", "int_type", "string_type", "model_type", "dict_type"):
-        return {"bool_type": "true or false", "int_type": "an integer", "string_type": "a string",
-                "model_type": "a table", "dict_type": "a table"}[kind]
-    return err["msg"].lower()
-
-
 def validate_config(doc, path):
     """The checked configuration of TOML document ``doc`` read from ``path``.
 
@@ -98,48 +81,16 @@ def validate_config(doc, path):
         err = exc.errors()[0]
         loc = err["loc"]
         where = f"[{loc[0]}]" + (f" {'.'.join(map(str, loc[1:]))}" if len(loc) > 1 else "")
+        _, value, expected = describe_validation_error(exc)
         if len(loc) == 1 and err["type"] == "extra_forbidden":
             raise ValueError(f"config {path}: unknown section [{loc[0]}] "
                              f"(has {', '.join(RunConfig.model_fields)})") from None
         if len(loc) == 2 and err["type"] == "extra_forbidden":
             raise ValueError(f"config {path}: unknown key {loc[1]!r} in [{loc[0]}]") from None
-        raise ValueError(f"config {path}: {where} = {err['input']!r}: expected {_expected(err)}") from None
-
-
-def _allowed(field):
-    meta = {type(m).__name__: m for m in field.metadata}
-    ann = field.annotation
-    if getattr(ann, "__origin__", None) is Literal:
-        return ", ".join(f'"{a}"' for a in ann.__args__)
-    parts = []
-    if "Ge" in meta:
-        parts.append(f">= {meta['Ge'].ge}")
-    if "Le" in meta:
-        parts.append(f"<= {meta['Le'].le}")
-    if "MinLen" in meta:
-        parts.append("non-empty")
-    return ", ".join(parts) or "-"
-
-
-def _type_name(field):
-    ann = field.annotation
-    if getattr(ann, "__origin__", None) is Literal:
-        return "string"
-    if ann is bool:
-        return "boolean"
-    if ann is int:
-        return "integer"
-    return "string or absent" if "Optional" in str(ann) or "None" in str(ann) else "string"
+        raise ValueError(f"config {path}: {where} = {value!r}: expected {expected}") from None
 
 
 def config_schema_markdown():
     """The config schema as a Markdown table (``docs/schemas.md`` holds this text)."""
-    lines = ["| key | type | default | allowed | meaning |", "|---|---|---|---|---|"]
-    for section, sfield in RunConfig.model_fields.items():
-        for key, field in sfield.annotation.model_fields.items():
-            default = "absent" if field.default is None else repr(field.default).replace("'", '"')
-            if isinstance(field.default, bool):
-                default = str(field.default).lower()
-            lines.append(f"| `[{section}] {key}` | {_type_name(field)} | {default} | {_allowed(field)} | "
-                         f"{field.description} |")
-    return "\n".join(lines) + "\n"
+    header = ["| key | type | default | allowed | meaning |", "|---|---|---|---|---|"]
+    return "\n".join(header + fields_markdown(RunConfig)) + "\n"

@@ -12,6 +12,7 @@ import re
 import pytest
 
 from conftest import REPO
+from dragline.capture._session_schema import session_info_markdown
 from dragline.pipelines._config_schema import config_schema_markdown
 from dragline.pipelines._run import read_config
 from dragline.pipelines.cli import main
@@ -48,9 +49,16 @@ def test_a_valid_config_is_read_with_its_values_and_the_defaults(tmp_path):
     assert got["simulate"]["discretization"] == "baseline"
 
 
-def test_the_docs_list_the_schema_as_generated_from_it():
+def test_the_docs_list_the_schemas_as_generated_from_them():
     doc = (REPO / "docs" / "schemas.md").read_text()
-    table = re.search(r"<!-- generated: config schema -->\n(.*?)<!-- end generated -->", doc, re.S).group(1)
+
+    def block(name):
+        return re.search(rf"<!-- generated: {name} -->\n(.*?)<!-- end generated -->", doc, re.S).group(1)
+
+    table = block("config schema")
     assert table == config_schema_markdown()
-    for key in ("seed", "study", "diagnose", "rig", "maneuver", "discretization", "method", "smoothing", "max_gap"):
-        assert f"] {key}`" in table
+    for key in ("run.seed", "run.study", "simulate.rig", "simulate.discretization", "reconstruct.max_gap"):
+        assert f"| `{key}` |" in table
+    table = block("session info schema")
+    assert table == session_info_markdown()
+    assert "| `rate_hz` | number | required | > 0; <= 100000 |" in table

@@ -1,0 +1,106 @@
+"""Shared by the declared input schemas: one-line errors and generated docs."""
+
+from __future__ import annotations
+
+import typing
+
+__all__ = ["describe_validation_error", "fields_markdown"]
+
+
+def describe_validation_error(exc):
+    """(where, value, expected) of a pydantic ValidationError's first error, for a one-line message."""
+    err = exc.errors()[0]
+    where = ".".join(map(str, err["loc"]))
+    ctx = err.get("ctx") or {}
+    kind = err["type"]
+    bound = {"greater_than_equal": ">=", "less_than_equal": "<=", "greater_than": ">", "less_than": "<"}
+    if kind in bound:
+        expected = f"a value {bound[kind]} {next(iter(ctx.values()))}"
+    elif kind == "missing":
+        expected = "a value (the key is missing)"
+    elif kind == "extra_forbidden":
+        expected = "no such key (see docs/schemas.md)"
+    elif kind == "literal_error":
+        expected = f"one of {ctx.get('expected')}"
+    elif kind == "string_too_short":
+        expected = "a non-empty string"
+    elif kind in ("too_short", "too_long"):
+        expected = err["msg"].lower().replace("list should have", "").strip()
+        expected = f"a list of {expected}"
+    else:
+        expected = {"bool_type": "true or false", "int_type": "an integer", "float_type": "a number",
+                    "string_type": "a string", "model_type": "an object", "dict_type": "an object",
+                    "list_type": "a list", "finite_number": "a finite number",
+                    "value_error": ""}.get(kind, err["msg"].lower())
+        if kind == "value_error":
+            expected = err["msg"].removeprefix("Value error, ")
+    return where, err.get("input"), expected
+
+
+def _type_name(annotation):
+    origin = typing.get_origin(annotation)
+    args = typing.get_args(annotation)
+    if origin is typing.Literal:
+        return "string"
+    if origin is typing.Union and type(None) in args:
+        return _type_name(next(a for a in args if a is not type(None))) + " or null"
+    if origin is list:
+        return f"list of {_type_name(args[0])}" if args else "list"
+    if origin is dict:
+        return "object"
+    if getattr(annotation, "__metadata__", None):  # Annotated
+        return _type_name(args[0])
+    return {bool: "boolean", int: "integer", float: "number", str: "string"}.get(annotation, "object")
+
+
+def _number(x):
+    return str(int(x)) if float(x).is_integer() and abs(x) < 1e12 else f"{x:g}"
+
+
+def _allowed(field):
+    parts = []
+    args = typing.get_args(field.annotation)
+    if typing.get_origin(field.annotation) is typing.Literal:
+        parts.append(", ".join(f'"{a}"' for a in args))
+    lo = hi = None
+    for m in field.metadata:
+        for attr, sign in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")):
+            if getattr(m, attr, None) is not None:
+                parts.append(f"{sign} {_number(getattr(m, attr))}")
+        lo = getattr(m, "min_length", None) if getattr(m, "min_length", None) is not None else lo
+        hi = getattr(m, "max_length", None) if getattr(m, "max_length", None) is not None else hi
+    if _type_name(field.annotation).startswith("string"):
+        if lo:
+            parts.append("non-empty")
+    elif lo is not None and lo == hi:
+        parts.append(f"exactly {lo} items")
+    elif lo is not None or hi is not None:
+        parts.append(f"{lo or 0} to {hi} items" if hi is not None else f"at least {lo} items")
+    return "; ".join(parts) or "-"
+
+
+def _default(field):
+    if field.is_required():
+        return "required"
+    value = field.get_default(call_default_factory=True)
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, str):
+        return f'"{value}"'
+    return str(value)
+
+
+def fields_markdown(model, prefix=""):
+    """Markdown rows (key, type, default, allowed, meaning) of a pydantic model, nested models flattened."""
+    rows = []
+    for name, field in model.model_fields.items():
+        key = f"{prefix}{name}"
+        sub = field.annotation
+        if isinstance(sub, type) and hasattr(sub, "model_fields"):
+            rows += fields_markdown(sub, f"{key}.")
+            continue
+        rows.append(f"| `{key}` | {_type_name(field.annotation)} | {_default(field)} | {_allowed(field)} | "
+                    f"{field.description or ''} |")
+    return rows
