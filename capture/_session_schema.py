@@ -24,6 +24,7 @@ MAX_CAMERAS = 256
 # Centroid arrays (cameras x frames x markers x 2 doubles) of all takes together.
 MAX_CENTROID_BYTES = 2 * 2**30
 
+
 class _Strict(BaseModel):
     model_config = ConfigDict(strict=True, frozen=True)
 
