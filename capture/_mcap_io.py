@@ -480,10 +480,8 @@ def _read_session_file(path):
 
 
 def _assemble(path, info, frames, scan):
-    """Arrays and report from what one scan recovered."""
-    if info.get("format") != SESSION_FORMAT:
-        raise ValueError(f"{path}: session format {info.get('format')!r}, "
-                         f"expected {SESSION_FORMAT}")
+    """Arrays and report from what one scan recovered (the info checked against its schema first)."""
+    check_session_info(info, path)
     n_cams = len(info["camera_names"])
     arrays, counts, expected, lost, notes = {}, {}, {}, [], []
     for take in TAKES:
@@ -553,7 +551,6 @@ def read_session(path):
     info, frames, scan = _read_session_file(path)
     if info is None:
         raise ValueError(f"{path}: no session info ({INFO_TOPIC} missing or lost)")
-    check_session_info(info, path)
     arrays, report = _assemble(path, info, frames, scan)
     maneuver = {k: np.array(v, dtype=float) for k, v in info["maneuver"].items()}
     lpts = info["lframe_points"]
@@ -603,7 +600,6 @@ def summarize_mcap(path):
                     "no messages; only the file's summary/footer is incomplete"
                     if scan["data_complete"] else "messages after the last complete chunk")}
     if info is not None:
-        check_session_info(info, path)
         arrays, report = _assemble(path, info, frames, scan)
         unseen = {}
         for take, arr in arrays.items():

@@ -27,13 +27,12 @@ def describe_validation_error(exc):
     elif kind in ("too_short", "too_long"):
         expected = err["msg"].lower().replace("list should have", "").strip()
         expected = f"a list of {expected}"
+    elif kind == "value_error":
+        expected = err["msg"].removeprefix("Value error, ")
     else:
         expected = {"bool_type": "true or false", "int_type": "an integer", "float_type": "a number",
                     "string_type": "a string", "model_type": "an object", "dict_type": "an object",
-                    "list_type": "a list", "finite_number": "a finite number",
-                    "value_error": ""}.get(kind, err["msg"].lower())
-        if kind == "value_error":
-            expected = err["msg"].removeprefix("Value error, ")
+                    "list_type": "a list", "finite_number": "a finite number"}.get(kind, err["msg"].lower())
     return where, err.get("input"), expected
 
 

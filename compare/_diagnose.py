@@ -480,13 +480,6 @@ def _structure_energy(residual, channels, sigma, width):
     return float(np.nansum((lp / thr) ** 2))
 
 
-def _json_number(x):
-    if x is None:
-        return None
-    x = float(x)
-    return x if math.isfinite(x) else None
-
-
 # Smallest stated relative uncertainty (in ln p). In the blind benchmark
 # (26 sessions, 2026-11-21) strong fits erred by up to 2-4 % (sheave
 # inertia 2.3-3.6 % low, pulley friction 2.0 %) while their profile
@@ -509,11 +502,11 @@ def _uncertainty(scored, main, kappa):
     stated = None if sx is None or scored["at_bound"] else max(sx, spread or 0.0, SYSTEMATIC_FLOOR, REFINE_XATOL)
     return {
         "parameter": main,
-        "std": _json_number(value * stated) if stated is not None and value > 0 else None,
-        "relative": _json_number(stated),
+        "std": value * stated if stated is not None and value > 0 else None,
+        "relative": stated,
         "interval_68": ([value * math.exp(-stated), value * math.exp(stated)]
                         if stated is not None and value > 0 else None),
-        "profile_relative": _json_number(sx),
+        "profile_relative": sx,
         "fold_values": scored["fold_values"],
         "method": "largest of the chi2(ln p) profile curvature (scaled by the residual's dispersion and "
                   "autocorrelation), half the spread of the two folds' estimates and a floor for the "

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import os
 import sys
 
-from dragline.capture._strict_json import json_text
+from dragline.capture._strict_json import json_text, write_json
 
 from ._options import check_output_path
 
@@ -68,13 +67,9 @@ def run(args):
     if args.json:
         check_output_path(args.json)
     report, lines = BENCHES[args.what](args)
-    text = json_text(report, indent=2)
     if args.json:
-        tmp = f"{args.json}.tmp{os.getpid()}"
-        with open(tmp, "w") as fh:
-            fh.write(text + "\n")
-        os.replace(tmp, args.json)
+        write_json(args.json, report, indent=2)
     for line in lines:
         print(line, file=sys.stderr)
-    print(text)
+    print(json_text(report, indent=2))
     return 0

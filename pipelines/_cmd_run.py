@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 from dragline.capture._strict_json import json_text
 
 
