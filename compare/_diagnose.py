@@ -70,6 +70,7 @@ from ._hypotheses import (
     candidate_list,
     decide,
     fit_candidates,
+    leftover_share,
     null_threshold,
     profile_uncertainty,
     score_candidate,
@@ -123,6 +124,11 @@ DIFFERENT_RIG = 5.0
 # A mechanism must explain at least this share of the chi2 the updated
 # model leaves above noise (see ``diagnose``).
 MODEL_ERROR_SHARE = 0.25
+# Candidates refitted jointly with the rig parameters (each about 70-90
+# simulations): the lead alone missed a sheave inertia that updating had
+# read as cluster mass (third on top of the updated rig, 0.18 times the
+# threshold, behind a friction at the bottom of its range).
+JOINT_REFITS = 2
 FREE_DECAY_KEYS = ("frequency_hz", "damping_ratio", "amplitude", "shape", "confidence", "decay_rate",
                    "decrement_per_cycle", "quadratic_coefficient")
 DECAY_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch", "drag_cluster.x", "spreader_bar.pitch",
@@ -673,21 +679,31 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     note(f"fitting {len(runnable)} candidate mechanisms ({', '.join(c['name'] for c in runnable)})")
     points = fit_candidates(problem, ctx, runnable, base_sim, workers=workers, progress=note)
     scored = {c["name"]: score_candidate(problem, c, points[c["name"]]) for c in runnable}
-    joint = None
+    joints = {}
     if update is not None and scored:
-        lead = max(runnable, key=lambda c: scored[c["name"]]["improvement"])
-        s = scored[lead["name"]]
-        if s["value"] > 0 and s["improvement"] > 0:
+        # Updating ran before any mechanism, so the parameters took up what
+        # they could of a real one (a sheave's inertia read as cluster mass):
+        # on top of the updated rig its score is too low. The leading
+        # candidates that could be named (off the bounds of their range) are
+        # refitted jointly with the parameters; a candidate at a bound cannot
+        # be named, and refitting it would spend the budget on a dead end.
+        eligible = sorted((c for c in runnable if scored[c["name"]]["value"] > 0
+                           and scored[c["name"]]["improvement"] > 0 and not scored[c["name"]]["at_bound"]),
+                          key=lambda c: -scored[c["name"]]["improvement"])
+        for lead in eligible[:JOINT_REFITS]:
+            s = scored[lead["name"]]
             note(f"refitting {lead['name']} and the rig parameters together")
             joint = joint_refit(plain_problem, nominal_ctx, update,
                                 make_mechanism(lead["name"], **{lead["main"]: s["value"]}), error_directions,
-                                workers=workers, progress=note)
-        if joint is not None:
+                                workers=workers, progress=note, value_range=lead["searched"])
+            if joint is None:
+                continue
+            joints[lead["name"]] = joint
             value = float(joint["mechanism"].parameters[lead["main"]])
             points[lead["name"]].append((value, joint["sim"], problem.evaluate(joint["sim"])))
             # The profile's curvature comes from the search on one rig; the
             # joint point sits on another and would bend the parabola.
-            profile = scored[lead["name"]]["profile"]
+            profile = s["profile"]
             scored[lead["name"]] = score_candidate(problem, lead, points[lead["name"]])
             scored[lead["name"]]["profile"] = profile
             scored[lead["name"]]["n_simulations"] += joint["n_simulations"] - 1
@@ -761,6 +777,8 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
             "profile": [{"value": v, "chi2": ch} for v, ch in s["profile"]],
             "chi2_nominal": nominal_eval["full"],
         })
+    for h in hypotheses:
+        h["leftover_share"] = leftover_share(h)
     hypotheses.sort(key=lambda h: -h["improvement"])
     for k, h in enumerate(sorted(hypotheses, key=lambda h: -h["signature_match"])):
         h["signature_rank"] = k + 1
@@ -782,10 +800,10 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         # beyond OFFSET_FINDING a finding; beyond OFFSET_LIMIT times
         # DIFFERENT_RIG no parameter within tolerance comes near: another rig.
         left = update["block"]["offsets_left"]
-        if joint is not None and after_name == joint["mechanism"].name:
+        if after_name in joints:
             # A mechanism can shift the mean pose (rope held in a ring): the
             # offsets left are those of the joint refit with it.
-            left = joint["offsets"]
+            left = joints[after_name]["offsets"]
         judged = {c: left[c] for c in channels if channel_kind(c) in OFFSET_LIMIT}
         limit = {c: DIFFERENT_RIG * OFFSET_LIMIT[channel_kind(c)] for c in judged}
     else:
@@ -829,7 +847,7 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         "reason": reason,
         "mismatch": [e for e in located_nominal if e["significant"]][:MAX_MISMATCH_ENTRIES],
         "mismatch_updated": structured_before[:MAX_MISMATCH_ENTRIES],
-        "calibration": _calibration_doc(update, joint, nominal_ctx),
+        "calibration": _calibration_doc(update, joints, nominal_ctx, after_name),
         "model_error": model_error_block,
         "mismatch_after": {"model": after_name or ("updated" if update else "nominal"),
                            "entries": structured_after[:MAX_MISMATCH_ENTRIES]},
@@ -863,19 +881,25 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
                      located={"before": json_ready(located), "after": json_ready(located_after)})
 
 
-def _calibration_doc(update, joint, ctx):
-    """The JSON ``calibration`` block, with the leading candidate's joint refit when one ran."""
+def _calibration_doc(update, joints, ctx, named=None):
+    """The JSON ``calibration`` block, with the candidates' joint refits when they ran.
+
+    ``joint_refit`` is the named candidate's (else the first refitted);
+    ``joint_refits`` lists every one.
+    """
     if update is None:
         return {"parameters": [], "method": "the rig states no tolerances: nothing updated"}
     block = dict(update["block"])
-    if joint is not None:
-        block["joint_refit"] = {
-            "mechanism": joint["mechanism"].name,
-            "parameters": dict(joint["mechanism"].parameters),
-            "shift_in_tolerances": {p.name: float(x / p.tolerance) for p, x in zip(ctx["parameters"], joint["coords"])},
-            "history": joint["history"],
-            "n_simulations": joint["n_simulations"],
-        }
+    entries = {name: {
+        "mechanism": name,
+        "parameters": dict(joint["mechanism"].parameters),
+        "shift_in_tolerances": {p.name: float(x / p.tolerance) for p, x in zip(ctx["parameters"], joint["coords"])},
+        "history": joint["history"],
+        "n_simulations": joint["n_simulations"],
+    } for name, joint in joints.items()}
+    if entries:
+        block["joint_refit"] = entries.get(named) or next(iter(entries.values()))
+        block["joint_refits"] = list(entries.values())
     return block
 
 

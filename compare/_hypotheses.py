@@ -125,6 +125,16 @@ MIN_IMPROVEMENT = 200.0
 BOUND_TOLERANCE = 0.05  # in ln p
 # Verdict policy (see ``decide``).
 EXPLAINED_MIN = 0.75
+# The named mechanism must describe the recording, not only improve it:
+# beyond ADEQUATE_RMS noise sigmas of held-out residual it must leave at
+# most LEFTOVER_SHARE of the updated model's excess over noise. Measured on
+# the realistic benchmark: a hidden sheave bearing damping (a viscous drag
+# on the rope's slide, not a candidate) left 5.3 sigma after the best
+# candidate, chain-link friction: 15 % of the excess, although it had taken
+# 89 % of the structure; a hidden pulley friction (the right candidate, a
+# 51-sigma effect) left 6.5 sigma, 1.6 % of the excess.
+ADEQUATE_RMS = 2.0
+LEFTOVER_SHARE = 0.10
 # A mechanism whose signature correlates with a rig parameter's change
 # beyond this cannot be told apart from it.
 CONFOUNDED = 0.95
@@ -678,6 +688,14 @@ def signature_match(problem, nominal_residual, signature):
 
 # ---------------------------------------------------------------- decision
 
+def leftover_share(hypothesis):
+    """Share of the excess held-out chi2 over noise that a candidate leaves (0 = all explained)."""
+    before, after = hypothesis.get("rms_before"), hypothesis.get("rms_after")
+    if before is None or after is None or before**2 <= 1.0:
+        return 0.0
+    return max(0.0, after**2 - 1.0) / (before**2 - 1.0)
+
+
 def decide(hypotheses, threshold, structured_before, structured_after, offsets_ok=True, offsets_note=None,
            updates=()):
     """The verdict: a mechanism, "none" or "unexplained", and why.
@@ -716,6 +734,11 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
        apart from a parameter change within tolerance).
     5. A structured mismatch remains and the best explains less than
        ``EXPLAINED_MIN`` of the structured mismatch: "unexplained".
+    5b. The best leaves a held-out RMS residual (``rms_after``) beyond
+       ``ADEQUATE_RMS`` noise sigmas and more than ``LEFTOVER_SHARE`` of
+       the excess chi2 over noise before it (``rms_before``):
+       "unexplained" (it takes up part of an effect whose law is not its
+       own).
     6. Otherwise the best candidate.
 
     Returns
@@ -764,6 +787,12 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
         return "unexplained", (f"{best['name']} is the best candidate but explains only {100 * frac:.0f} % of the "
                                f"structured mismatch; a structured mismatch remains, largest at "
                                f"{where(structured_after)}")
+    left = leftover_share(best)
+    if best.get("rms_after", 0.0) > ADEQUATE_RMS and left > LEFTOVER_SHARE:
+        return "unexplained", (f"{best['name']} is the best candidate, but leaves {100 * left:.0f} % of the excess over "
+                               f"noise (held-out residual {best['rms_after']:.1f} times the noise; a mechanism that "
+                               f"describes the recording leaves at most {100 * LEFTOVER_SHARE:.0f} %): it takes up part "
+                               "of an effect whose law is not its own")
     reason = (f"{best['name']} improves held-out data by {best['improvement']:.1f} (chi2), "
               f"{best['score']:.1f} times what noise alone gives")
     if len(sig) > 1:

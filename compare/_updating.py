@@ -345,7 +345,7 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
             "active": active, "strength": strength, "failed": failed}
 
 
-def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2, progress=None):
+def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2, progress=None, value_range=None):
     """The leading candidate and the rig parameters refitted together, nonlinearly.
 
     Updating ran before any mechanism, so with a real mechanism at work the
@@ -370,6 +370,9 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     error_directions : sequence of ndarray (n, c)
     workers : int
     progress : callable, optional
+    value_range : (float, float), optional
+        Where the main parameter may go (the candidate's searched range):
+        the search on the joint rig stays inside it.
 
     Returns
     -------
@@ -428,8 +431,7 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
         tried[v] = (obj, s_)
         return obj
 
-    x0 = math.log(value0)
-    minimize_scalar(objective, bounds=(x0 - JOINT_SPAN, x0 + JOINT_SPAN), method="bounded",
+    minimize_scalar(objective, bounds=joint_value_bounds(value0, value_range), method="bounded",
                     options={"xatol": 0.02, "maxiter": JOINT_VALUE_EVALS})
     value = min(tried, key=lambda v: tried[v][0])
     history = fit.history + [{"step": mechanism.name, "value": value, "objective": tried[value][0]}]
@@ -438,6 +440,15 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     return {"coords": coords, "mechanism": make_mechanism(mechanism.name, **{main: value}), "sim": tried[value][1],
             "rig": rig, "maneuver": maneuver, "initial_state": state, "n_simulations": n_sims, "history": history,
             "offsets": offsets}
+
+
+def joint_value_bounds(value, value_range=None, span=JOINT_SPAN):
+    """Search interval in ln p for a joint refit's main parameter: +-span about value, within value_range."""
+    x0 = math.log(value)
+    lo, hi = x0 - span, x0 + span
+    if value_range is not None:
+        lo, hi = max(lo, math.log(value_range[0])), min(hi, math.log(value_range[1]))
+    return lo, max(hi, lo + 1e-9)
 
 
 @dataclass

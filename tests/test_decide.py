@@ -1,0 +1,68 @@
+"""The verdict's rules (dragline.compare._hypotheses.decide) on hypotheses built by hand.
+
+The diagnosis tests run the whole chain on simulated recordings; these pin
+the policy itself, one rule at a time, with hypotheses whose held-out
+figures are chosen to sit either side of each rule's limit.
+"""
+
+import math
+
+import pytest
+
+from dragline.compare._hypotheses import ADEQUATE_RMS, LEFTOVER_SHARE, decide, leftover_share
+from dragline.compare._updating import JOINT_SPAN, joint_value_bounds
+
+THRESHOLD = 100.0
+
+
+def _hypothesis(name, improvement, rms_before, rms_after, at_bound=None, explained=0.99):
+    return {"name": name, "improvement": improvement, "significant": improvement > THRESHOLD,
+            "at_bound": at_bound, "explained_fraction": explained, "rms_before": rms_before,
+            "rms_after": rms_after, "score": improvement / THRESHOLD, "main_parameter": "mu",
+            "parameters": {"mu": 0.1}, "nuisance_correlation": []}
+
+
+def test_leftover_share_is_the_excess_over_noise_left():
+    # chi2 per point 10 before (excess 9), 1 after: nothing left; 1.9 after: 0.9 of 9 left.
+    assert leftover_share({"rms_before": math.sqrt(10.0), "rms_after": 1.0}) == pytest.approx(0.0)
+    assert leftover_share({"rms_before": math.sqrt(10.0), "rms_after": math.sqrt(1.9)}) == pytest.approx(0.1)
+    # Below the noise after: nothing left, never negative; nothing to explain before: 0.
+    assert leftover_share({"rms_before": 2.0, "rms_after": 0.9}) == 0.0
+    assert leftover_share({"rms_before": 0.95, "rms_after": 0.9}) == 0.0
+
+
+def test_a_candidate_that_leaves_much_of_a_large_misfit_is_not_named():
+    # Held-out 13.5 sigma before, 5.3 after: 15 % of the excess left, far above the noise.
+    best = _hypothesis("chain_link_friction", 5e6, 13.5, 5.3)
+    verdict, reason = decide([best], THRESHOLD, [], [])
+    assert leftover_share(best) > LEFTOVER_SHARE and best["rms_after"] > ADEQUATE_RMS
+    assert verdict == "unexplained"
+    assert "chain_link_friction" in reason and "15 %" in reason
+
+
+def test_a_strong_effect_nearly_all_explained_is_named_though_its_residual_is_above_noise():
+    # 51 sigma before, 6.5 after: 1.6 % of the excess left.
+    verdict, _ = decide([_hypothesis("pulley_friction", 9e7, 51.0, 6.5)], THRESHOLD, [], [])
+    assert verdict == "pulley_friction"
+
+
+def test_a_weak_effect_near_the_noise_is_named_whatever_share_it_leaves():
+    # 1.5 sigma before, 1.3 after: half the small excess left, but within ADEQUATE_RMS of the noise.
+    verdict, _ = decide([_hypothesis("aero_drag", 500.0, 1.5, 1.3)], THRESHOLD, [], [])
+    assert verdict == "aero_drag"
+
+
+def test_a_candidate_at_the_bound_of_its_range_is_not_named():
+    verdict, reason = decide([_hypothesis("chain_link_friction", 1e5, 3.0, 1.1, at_bound="lower")],
+                             THRESHOLD, [], [])
+    assert verdict == "unexplained" and "lower end" in reason
+
+
+def test_a_joint_refit_searches_within_the_candidates_range():
+    lo, hi = joint_value_bounds(0.012, (0.01, 1.0))
+    assert lo == pytest.approx(math.log(0.01)) and hi == pytest.approx(math.log(0.012) + JOINT_SPAN)
+    lo, hi = joint_value_bounds(0.9, (0.01, 1.0))
+    assert hi == pytest.approx(0.0) and lo == pytest.approx(math.log(0.9) - JOINT_SPAN)
+    # Without a range: the plain span either side.
+    lo, hi = joint_value_bounds(0.1)
+    assert hi - lo == pytest.approx(2 * JOINT_SPAN)
