@@ -23,11 +23,10 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from ._cameras_schema import CAMERAS_FORMAT, check_cameras_doc
 from ._strict_json import write_json
 
 __all__ = ["Camera", "project_points", "camera_centre", "save_cameras", "load_cameras"]
-
-CAMERAS_FORMAT = "dragline.cameras/1"
 
 
 @dataclass(frozen=True)
@@ -125,13 +124,14 @@ def load_cameras(path):
     Raises
     ------
     ValueError
-        If the file is not a dragline cameras file.
+        If the file is not a dragline cameras file, or breaks its schema
+        (``_cameras_schema``, docs/schemas.md): one line naming the file,
+        the camera and the field.
     """
     with open(path) as fh:
         try:
             doc = json.load(fh)
         except json.JSONDecodeError as exc:
             raise ValueError(f"{path}: not a JSON cameras file ({exc.msg})") from None
-    if not isinstance(doc, dict) or doc.get("format") != CAMERAS_FORMAT:
-        raise ValueError(f"{path}: not a dragline cameras file (format {CAMERAS_FORMAT} expected)")
+    check_cameras_doc(doc, path)
     return [Camera.from_dict(c) for c in doc["cameras"]]
