@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._rig_schema import MAX_PARTICLES, check_rig_doc
 from ._table import BODIES
 
 __all__ = ["BodySpec", "RopeSpec", "Rig", "load_rig", "rig_from_dict", "DISCRETIZATION_LEVELS"]
@@ -122,8 +123,9 @@ class Rig:
                 targets = [r for r in self.ropes if r in (name, f"left_{name}", f"right_{name}")]
                 if not targets:
                     raise ValueError(f"unknown rope {name!r} in discretization")
-                if int(n) != n or n < 1:
-                    raise ValueError(f"particle count for {name!r} must be a positive integer, got {n}")
+                if int(n) != n or not 1 <= n <= MAX_PARTICLES:
+                    raise ValueError(f"particle count for {name!r} must be an integer from 1 to {MAX_PARTICLES}, "
+                                     f"got {n}")
                 for t in targets:
                     counts[t] = int(n)
         return counts
@@ -170,7 +172,8 @@ def load_rig(path=None):
     Raises
     ------
     ValueError
-        On a missing body, an unknown point name, or malformed numbers.
+        On anything its schema refuses (``_rig_schema``, docs/schemas.md), a
+        missing body or an unknown point name: one line naming the file.
     """
     if path is None:
         text = resources.files("dragline.simulate").joinpath("data/rig.toml").read_text()
@@ -185,6 +188,7 @@ def load_rig(path=None):
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{source}: not valid TOML ({exc})") from None
+    check_rig_doc(doc, source)
     rig = rig_from_dict(doc, source)
     missing = [b for b in BODIES if b not in rig.bodies]
     if missing:

@@ -69,7 +69,8 @@ def test_bad_maneuver_tables_exit_2_with_one_line(tmp_path, capsys, rows, messag
     "args, message",
     [
         (["--discretization", "huge"], "unknown discretization"),
-        (["--discretization", "hoist_rope=0"], "positive integer"),
+        (["--discretization", "hoist_rope=0"], "integer from 1 to 500"),
+        (["--discretization", "hoist_rope=1000000000"], "integer from 1 to 500"),  # grew to 24 GB
         (["--discretization", "tail_rope=4"], "unknown rope"),
         (["--physics", "warp_drive"], "unknown mechanism"),
         (["--physics", "aero_drag:cd=-1"], "non-negative"),

@@ -1,0 +1,141 @@
+"""The declared schema of a rig TOML file (``--rig``; the built-in one is ``data/rig.toml``).
+
+Checked when a rig file is read, before the model is built from it: a
+rope's ``start = 5`` once ended in an AttributeError traceback, a
+``length = inf`` or a negative mass was accepted and produced nonsense, a
+discretization row with a zero built a model with fewer states than the
+rig has ropes, and a dump rope of 1e-9 m asked the integrator for steps of
+femtoseconds. pydantic v2 in strict mode, as the other declared inputs
+(``docs/schemas.md``). Cross-references (a rope's ends naming points that
+exist, tolerances naming parameters that exist) are checked by the reader
+itself, which knows the rig.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal, Optional
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+__all__ = ["RigFile", "check_rig_doc", "rig_markdown", "MAX_PARTICLES"]
+
+# A rope of more particles than this is a typo, not a discretization (the
+# finest built-in level has 16).
+MAX_PARTICLES = 500
+# Shorter than this, a rope's elements set a time step of nanoseconds.
+MIN_ROPE_LENGTH = 1e-3  # m
+MAX_COORDINATE = 1e4  # m
+
+_Coordinate = Annotated[float, Field(allow_inf_nan=False, ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
+_Vec3 = Annotated[list[_Coordinate], Field(min_length=3, max_length=3)]
+_Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(strict=True, frozen=True, extra="forbid")
+
+
+class Body(_Strict):
+    """A rigid body: mass, mass centre, inertia, points and markers (body frame)."""
+
+    mass: float = Field(gt=0, le=1e6, allow_inf_nan=False, description="kg")
+    cg_body: _Vec3 = Field(description="mass centre about the body reference point (m)")
+    inertia_diag: list[_Positive] = Field(min_length=3, max_length=3, description="Ixx, Iyy, Izz (kg m^2)")
+    inertia_offdiag: Optional[list[Annotated[float, Field(allow_inf_nan=False)]]] = Field(
+        None, min_length=3, max_length=3, description="Ixy, Ixz, Iyz (kg m^2)")
+    size: Optional[list[_Positive]] = Field(None, min_length=3, max_length=3,
+                                            description="box about the reference point (m)")
+    points: dict[str, _Vec3] = Field(default_factory=dict, description="rope attachment points (m)")
+    markers: dict[str, _Vec3] = Field(default_factory=dict, description="marker positions (m)")
+    position: Optional[_Vec3] = Field(None, description="starting guess for the statics (m, inertial)")
+
+
+class Rope(_Strict):
+    """A rope or chain segment with its Table 2 properties."""
+
+    start: str = Field(min_length=1, description='"body.point" or "fixed.point"')
+    end: str = Field(min_length=1, description='"body.point" or "fixed.point"')
+    ring: Optional[str] = Field(None, min_length=1, description="ring pulley it passes through")
+    reel: Optional[Literal["hoist", "drag"]] = Field(
+        None, description='"hoist" or "drag": its length is the maneuver\'s reel table')
+    length: Optional[float] = Field(None, ge=MIN_ROPE_LENGTH, le=1e3, allow_inf_nan=False,
+                                    description="unstretched length (m), ropes not on a reel")
+    weight_per_length: float = Field(gt=0, le=1e4, allow_inf_nan=False, description="N/m")
+    diameter: float = Field(0.01, gt=0, le=1.0, allow_inf_nan=False, description="projected width (m)")
+    static_stiffness: float = Field(gt=0, le=1e10, allow_inf_nan=False, description="Ks, N per unit strain")
+    viscous_stiffness: float = Field(gt=0, le=1e10, allow_inf_nan=False, description="Kv, N per unit strain")
+    viscous_damping: float = Field(gt=0, le=1e8, allow_inf_nan=False, description="Cv, N s per unit strain")
+    marker_distances: list[Annotated[float, Field(ge=0, le=1e3, allow_inf_nan=False)]] = Field(
+        default_factory=list, description="rope markers, m of rope from the end")
+    particles: Optional[int] = Field(None, ge=1, le=MAX_PARTICLES,
+                                     description="particles, rigs without a [discretization] table")
+
+    @model_validator(mode="after")
+    def _length_or_reel(self):
+        if self.reel is None and self.length is None:
+            raise ValueError("a rope needs a length or a reel")
+        return self
+
+
+_Counts = Annotated[list[Annotated[int, Field(ge=1, le=MAX_PARTICLES)]], Field(min_length=1)]
+
+
+class Discretization(_Strict):
+    """Table 3: particles per rope (right chains as left) at each level."""
+
+    order: list[str] = Field(min_length=1, description="rope names the rows follow")
+    low: _Counts = Field(description=f"particles per rope, 1-{MAX_PARTICLES} each, in `order`")
+    baseline: _Counts = Field(description="the same, the simulator's default level")
+    medium: _Counts = Field(description="the same")
+    high: _Counts = Field(description="the same, the finest level")
+
+    @model_validator(mode="after")
+    def _rows(self):
+        for level in ("low", "baseline", "medium", "high"):
+            row = getattr(self, level)
+            if len(row) != len(self.order):
+                raise ValueError(f"discretization.{level} has {len(row)} counts for {len(self.order)} ropes")
+        return self
+
+
+class RigFile(_Strict):
+    """A whole rig."""
+
+    name: Optional[str] = Field(None, description="shown in reports")
+    g: float = Field(9.81, ge=0, le=100, allow_inf_nan=False, description="gravity (m/s^2)")
+    bodies: dict[str, Body] = Field(default_factory=dict, description="rigid bodies by name")
+    fixed_points: dict[str, _Vec3] = Field(default_factory=dict, description="points fixed in the lab (m)")
+    ropes: dict[str, Rope] = Field(min_length=1, description="rope and chain segments by name")
+    discretization: Optional[Discretization] = Field(None, description="Table 3, below")
+    tolerances: dict[str, Any] = Field(default_factory=dict, description="docs/rig-file.md")
+    tolerance_groups: dict[str, list[str]] = Field(default_factory=dict, description="docs/rig-file.md")
+
+
+def check_rig_doc(doc, source):
+    """``doc`` (parsed TOML) checked against `RigFile`; ValueError with one line naming the file otherwise."""
+    from ..capture._schema_tools import describe_validation_error
+
+    try:
+        RigFile.model_validate(doc)
+    except ValidationError as exc:
+        where, value, expected = describe_validation_error(exc)
+        if exc.errors()[0]["type"] == "value_error" or not where:
+            raise ValueError(f"{source}: {where + ': ' if where else ''}{expected}") from None
+        shown = repr(value)
+        if len(shown) > 60:
+            shown = shown[:57] + "..."
+        if exc.errors()[0]["type"] == "missing":
+            raise ValueError(f"{source}: {where}: expected {expected}") from None
+        raise ValueError(f"{source}: {where} = {shown}: expected {expected}") from None
+    return doc
+
+
+def rig_markdown():
+    """The rig file schema as Markdown tables (``docs/schemas.md`` holds this text)."""
+    from ..capture._schema_tools import fields_markdown
+
+    header = ["| key | type | default | allowed | meaning |", "|---|---|---|---|---|"]
+    blocks = [header + fields_markdown(RigFile)]
+    for model, prefix in ((Body, "bodies.NAME."), (Rope, "ropes.NAME."), (Discretization, "discretization.")):
+        blocks.append(header + fields_markdown(model, prefix))
+    return "\n\n".join("\n".join(b) for b in blocks) + "\n"
