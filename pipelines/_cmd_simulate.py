@@ -39,7 +39,13 @@ def run(args):
     if args.dt is not None and not args.dt > 0:
         raise ValueError("--dt must be positive")
     t0 = time.perf_counter()
-    result = simulate(rig, maneuver, discretization, physics, duration=args.duration, rate_hz=args.rate, dt=args.dt)
+    try:
+        result = simulate(rig, maneuver, discretization, physics, duration=args.duration, rate_hz=args.rate,
+                          dt=args.dt)
+    except ValueError as exc:
+        if args.maneuver and str(exc).startswith("the maneuver"):
+            raise ValueError(f"{args.maneuver}: {exc}") from None
+        raise
     write_trajectory_csv(args.out, result.table)
     if not args.quiet:
         print(

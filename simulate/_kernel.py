@@ -45,6 +45,7 @@ KIND_FIXED = 2
 STATUS_OK = 0
 STATUS_NONFINITE = 1
 STATUS_RUNAWAY = 2
+STATUS_TOO_STIFF = 3  # the tracked step would exceed its budget (integrate_tracked)
 
 
 @njit(cache=True, inline="always")

@@ -29,6 +29,11 @@ class SimulationError(RuntimeError):
 # (2 cores, 2026-11-24); a fine-step study (10 s at 1 us) needs 1e7.
 MAX_STEPS = 5e7
 MAX_RECORD_BYTES = 2 * 2**30
+# A reel table is refused when it runs a rope's elements below this length
+# (the step would fall towards zero; the rope yanks its end away) or pays
+# rope faster than this speed (a table that jumps 1 m in 1e-12 s).
+MIN_ELEMENT_LENGTH = 1e-3  # m
+MAX_REEL_SPEED = 20.0  # m/s, fifteen times the paper's rope speed limit
 
 
 @dataclass
@@ -198,6 +203,31 @@ def mechanical_energy(model, time, states):
     return E
 
 
+def check_reel_table(model):
+    """ValueError (one line) when the maneuver's reel table is not one the rig's ropes can follow.
+
+    Every rope on a reel keeps each element at least ``MIN_ELEMENT_LENGTH``
+    long, and no reel pays out or winds in faster than ``MAX_REEL_SPEED``.
+    """
+    a = model.arrays
+    t = np.asarray(a["reel_t"], float)
+    lengths = model.segment_lengths(t)
+    for s, name in enumerate(model.seg_names):
+        if a["seg_reel"][s] < 0:
+            continue
+        n_el = int(a["seg_nel"][s])
+        k = int(np.argmin(lengths[s]))
+        if lengths[s, k] < MIN_ELEMENT_LENGTH * n_el:
+            raise ValueError(f"the maneuver runs {name} down to {lengths[s, k]:.3g} m of rope at t = {t[k]:g} s; "
+                             f"its {n_el} elements need at least {MIN_ELEMENT_LENGTH * n_el:g} m")
+        if t.size > 1:
+            speed = np.abs(np.diff(lengths[s])) / np.diff(t)
+            k = int(np.argmax(speed))
+            if speed[k] > MAX_REEL_SPEED:
+                raise ValueError(f"the maneuver moves {name} at {speed[k]:.3g} m/s between t = {t[k]:.12g} and "
+                                 f"{t[k + 1]:.12g} s; reels move at most {MAX_REEL_SPEED:g} m/s")
+
+
 def simulate(
     rig=None,
     maneuver=None,
@@ -267,6 +297,7 @@ def simulate(
             raise ValueError(f"a {duration:g} s simulation at a {dt:g} s step needs {steps:.3g} steps, "
                              f"more than the {MAX_STEPS:.0e} allowed (hours of computing)")
     model = assemble(rig, maneuver, discretization, physics=physics, dissipation=dissipation)
+    check_reel_table(model)
     t0 = float(maneuver.time[0])
     if initial_state is None:
         # Every mechanism acts only on motion (or is modelled so), so the
@@ -290,8 +321,13 @@ def simulate(
     if dt is None:
         dt0, lam0 = start_time_step(model, y0, t0)
         records, substeps, status, bad_time, bad_index = integrate_tracked(
-            y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed
+            y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, int(MAX_STEPS)
         )
+        if status == _kernel.STATUS_TOO_STIFF:
+            raise ValueError(
+                f"the rig stiffens beyond what can be integrated: at t = {bad_time:.3f} s a step of "
+                f"{out_dt / max(bad_index, 1):.2g} s would be needed (a rope or chain element near zero length? "
+                f"check the maneuver's reel lengths), more than the {MAX_STEPS:.0e} steps allowed")
         step = out_dt / max(int(substeps.max(initial=1)), 1)  # the smallest step taken
     else:
         per_record = max(1, int(np.ceil(out_dt / float(dt) - 1e-9)))

@@ -131,7 +131,7 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     m = tuple(arrays[k] for k in fields)
     work = _kernel.make_work(m)
     y = initial_state(model, t) if y0 is None else np.array(y0, float)
-    dt = stable_time_step(model, state=y)
+    dt = stable_time_step(model, state=y, t=t)
     chunk = int(np.ceil(1.0 / dt))
     speed_index = np.r_[[12 * b + k for b in range(model.n_bodies) for k in (3, 4, 5)], np.arange(model.o_vel, model.o_force)].astype(int)
     for _ in range(int(np.ceil(max_relax_time))):

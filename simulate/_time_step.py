@@ -37,13 +37,16 @@ GERSHGORIN_SAFETY = 0.75
 SPECTRAL_SAFETY = 0.85
 
 
-def stable_time_step(model, safety=GERSHGORIN_SAFETY, state=None):
+def stable_time_step(model, safety=GERSHGORIN_SAFETY, state=None, t=None):
     """A fixed RK4 step (s) for the whole maneuver, from the Gershgorin bound.
 
     The bound is taken at the stiffest the maneuver makes the rig before it
     runs: every segment at its shortest, ring sides at three quarters of
     their share (``state``, when given, sets the shares; an even split
-    without). Needs no equilibrium: the statics' relaxation steps with it.
+    without). With ``t``, the segments are taken at their lengths of that
+    time instead (the statics' relaxation, whose lengths are frozen there,
+    steps with it: a reel table that runs a rope to nothing later in the
+    maneuver once set a step of femtoseconds for the statics at its start).
 
     Notes
     -----
@@ -53,7 +56,8 @@ def stable_time_step(model, safety=GERSHGORIN_SAFETY, state=None):
     grow slowly over the 10 s dig, 0.8 did not; 0.75 keeps a margin.
     ``simulate`` uses ``start_time_step`` and a tracked step instead.
     """
-    Lmin = model.segment_lengths(model.arrays["reel_t"]).min(axis=1)
+    Lmin = (model.segment_lengths(model.arrays["reel_t"]).min(axis=1) if t is None
+            else model.segment_lengths(np.array([float(t)])).min(axis=1))
     worst = gershgorin_lambda(_shortest_rest_lengths(model, Lmin, state), Lmin, model.kernel_tuple())
     if worst == 0.0:  # nothing stiff: a step that still resolves 1 kHz
         return 1e-3

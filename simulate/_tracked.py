@@ -21,6 +21,7 @@ from ._kernel import (
     KIND_BODY,
     KIND_PARTICLE,
     STATUS_OK,
+    STATUS_TOO_STIFF,
     _element_rest,
     _segment_lengths,
     first_bad,
@@ -29,6 +30,11 @@ from ._kernel import (
 )
 
 __all__ = ["gershgorin_lambda", "state_gershgorin_lambda", "integrate_tracked"]
+
+# The dig's shortest ring side cuts the step about fivefold; a step a
+# thousand times below the start's means an element near zero length (a
+# reel table run to nothing), where the step would fall without end.
+MIN_STEP_RATIO = 1e-3
 
 
 @njit(cache=True)
@@ -114,13 +120,16 @@ def state_gershgorin_lambda(t, y, m, work):
 
 
 @njit(cache=True)
-def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed):
+def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, max_steps=50_000_000):
     """RK4 from ``t0``, one record every ``out_dt``, the step cut as the rig stiffens.
 
     In each record interval the step is ``dt0 * sqrt(lam0 / lam)`` when the
     Gershgorin bound ``lam`` at the interval's start exceeds ``lam0`` (the
     bound where ``dt0`` was found), else ``dt0``; rounded down to divide
-    ``out_dt``.
+    ``out_dt``. The steps of the whole run stay within ``max_steps``, and
+    the step above ``MIN_STEP_RATIO * dt0``: a rig that stiffens without
+    bound (a rope reeled in to nothing) would otherwise cut the step
+    towards zero and never finish.
 
     Returns
     -------
@@ -128,11 +137,12 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed):
     substeps : ndarray (n_records,) of int
         RK4 steps taken in each record interval.
     status : int
-        STATUS_OK, STATUS_NONFINITE or STATUS_RUNAWAY.
+        STATUS_OK, STATUS_NONFINITE, STATUS_RUNAWAY or STATUS_TOO_STIFF.
     bad_time : float
         Time (s) of the record at which the run stopped, else NaN.
     bad_index : int
-        State index found bad first, else -1.
+        State index found bad first (STATUS_TOO_STIFF: the steps the
+        interval needed), else -1.
     """
     n = y0.shape[0]
     records = np.empty((n_records + 1, n))
@@ -142,11 +152,16 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed):
     records[0] = y
     nb = m[0]
     P = m[5].shape[0]
+    total = 0
     for rec in range(n_records):
         t_rec = t0 + rec * out_dt
         lam = state_gershgorin_lambda(t_rec, y, m, work)
         dt = dt0 * math.sqrt(lam0 / lam) if lam > lam0 > 0.0 else dt0
-        sub = max(1, int(math.ceil(out_dt / dt - 1e-9)))
+        need = math.ceil(out_dt / dt - 1e-9) * 1.0 if dt > 0.0 else math.inf
+        if total + need > max_steps or dt < MIN_STEP_RATIO * dt0:
+            return records[: rec + 1], substeps[: rec + 1], STATUS_TOO_STIFF, t_rec, int(min(need, 2**62))
+        sub = max(1, int(need))
+        total += sub
         substeps[rec] = sub
         h = out_dt / sub
         for j in range(sub):

@@ -94,6 +94,23 @@ def test_bad_options_exit_2_with_one_line(tmp_path, capsys, args, message):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("rows, message", [
+    # The drag rope reeled to 1e-9 m: the statics stepped in femtoseconds (a hang), then the rope yanked
+    # its cluster past 100 m/s (exit 1).
+    ("0,8.6,4.2\n2.5,9.5,3.45\n3.5,9.5,1e-9\n6.5,10.1,1e-9\n", "drag_rope down to 1e-09 m"),
+    # The hoist reel jumps 1 m in 1e-12 s (exit 1 before).
+    ("0,8.6,4.2\n1,8.6,4.2\n1.000000000001,9.6,4.2\n3,9.6,4.2\n", "1e+12 m/s"),
+])
+def test_a_reel_table_the_ropes_cannot_follow_exits_2_naming_the_file(tmp_path, capsys, rows, message):
+    path = tmp_path / "m.csv"
+    path.write_text("time,hoist_length,drag_length\n" + rows)
+    out = tmp_path / "t.csv"
+    assert main(["simulate", "--maneuver", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(path) in err[0] and message in err[0], err
+    assert not out.exists()
+
+
 def test_usage_errors_exit_2_with_one_line(capsys):
     assert main(["simulate"]) == 2
     assert main(["no-such-command"]) == 2

@@ -82,3 +82,21 @@ def test_without_tracking_the_start_step_blows_up_as_a_ring_side_shortens(low_di
     _, _, status, bad_time, bad_index = _tracked(model, state, safety=None, track=False)
     assert status != _kernel.STATUS_OK and bad_time > 1.0
     assert "dump_rope" in model.describe_state_index(bad_index)
+
+
+def test_a_rig_stiffening_without_bound_stops_instead_of_stepping_towards_zero(low_dig):
+    model, state, _ = low_dig
+    dt0, lam0 = start_time_step(model, state)
+    m = model.kernel_tuple()
+    work = _kernel.make_work(m)
+    # As if the stiffness had grown ten-million-fold since dt0 was found: the step would fall below
+    # MIN_STEP_RATIO of it.
+    _, _, status, bad_time, need = integrate_tracked(state, 0.0, 5e-3, 10, dt0, lam0 * 1e-7, m, work, 100.0)
+    assert status == _kernel.STATUS_TOO_STIFF and bad_time == 0.0
+    assert need >= 5e-3 / (dt0 * 1e-3)
+    # A run whose steps would exceed the budget stops at the record that would pass it.
+    per_record = int(np.ceil(5e-3 / dt0 - 1e-9))
+    rec, substeps, status, bad_time, _ = integrate_tracked(state, 0.0, 5e-3, 10, dt0, np.inf, m, work, 100.0,
+                                                           max_steps=3 * per_record)
+    assert status == _kernel.STATUS_TOO_STIFF and len(rec) == 4 and bad_time == pytest.approx(3 * 5e-3)
+    assert substeps.sum() == 3 * per_record
