@@ -20,10 +20,11 @@ from dragline.capture._mcap_io import INFO_TOPIC
 from dragline.pipelines.cli import main
 
 SAMPLE = REPO / "samples" / "dig_sample" / "capture.mcap"
+TRIAL_FRAMES = read_session(SAMPLE)[0].trial.shape[1]
 
 
-def rewrite_info(src, dst, edit):
-    """Copy a session file with its info message passed through ``edit`` (a dict -> dict function)."""
+def rewrite_info(src, dst, edit, topic=INFO_TOPIC):
+    """Copy a session file with its info message (or every message on ``topic``) passed through ``edit``."""
     with open(src, "rb") as fin, open(dst, "wb") as fout:
         writer = Writer(fout)
         writer.start()
@@ -35,7 +36,7 @@ def rewrite_info(src, dst, edit):
                 channels[channel.id] = writer.register_channel(
                     channel.topic, channel.message_encoding, schemas.get(channel.schema_id, 0))
             data = message.data
-            if channel.topic == INFO_TOPIC:
+            if channel.topic == topic:
                 data = json.dumps(edit(json.loads(data))).encode()
             writer.add_message(channels[channel.id], message.log_time, data, message.publish_time)
         writer.finish()
@@ -87,3 +88,19 @@ def test_an_unedited_copy_reads_as_the_original(tmp_path):
     a, _ = read_session(SAMPLE)
     b, _ = read_session(copy)
     assert a.rate_hz == b.rate_hz and a.marker_names == b.marker_names and a.trial.shape == b.trial.shape
+
+
+def test_a_frame_number_typo_exits_2_without_sizing_an_array_from_it(tmp_path, capsys):
+    # The last trial frame numbered 3000000 instead of its own: reconstruct once grew to 24 GB.
+    last = {}
+
+    def retype(msg):
+        last.setdefault("seen", 0)
+        last["seen"] += 1
+        return dict(msg, frame=3_000_000) if msg["frame"] == TRIAL_FRAMES - 1 else msg
+
+    bad = rewrite_info(SAMPLE, tmp_path / "capture.mcap", retype, topic="/trial/centroids")
+    assert last["seen"] == TRIAL_FRAMES
+    assert main(["inspect", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(bad) in err[0] and "frame numbers run outside" in err[0], err
