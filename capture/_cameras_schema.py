@@ -14,7 +14,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from ._schema_tools import describe_validation_error, fields_markdown
+from ._schema_tools import describe_validation_error, fields_markdown, key_text
 
 __all__ = ["CamerasFile", "check_cameras_doc", "cameras_markdown"]
 
@@ -108,7 +108,7 @@ def check_cameras_doc(doc, path):
 def _camera_label(doc, loc):
     if len(loc) >= 2 and loc[0] == "cameras" and isinstance(loc[1], int):
         try:
-            return f"camera {doc['cameras'][loc[1]].get('name', loc[1])!r}"
+            return f"camera {str(doc['cameras'][loc[1]].get('name', loc[1]))!r}"
         except (AttributeError, IndexError, KeyError, TypeError):
             return f"camera {loc[1]}"
     return None
@@ -117,7 +117,7 @@ def _camera_label(doc, loc):
 def _where(doc, exc):
     loc = exc.errors()[0]["loc"]
     camera = _camera_label(doc, loc)
-    rest = ".".join(map(str, loc[2:] if camera else loc))
+    rest = ".".join(map(key_text, loc[2:] if camera else loc))
     return f"{camera} {rest}" if camera and rest else (camera or rest)
 
 

@@ -4,13 +4,19 @@ from __future__ import annotations
 
 import typing
 
-__all__ = ["describe_validation_error", "fields_markdown"]
+__all__ = ["describe_validation_error", "fields_markdown", "key_text"]
+
+
+def key_text(key):
+    """A document key as shown in a one-line message: as is when plain, quoted when it holds odd characters."""
+    text = str(key)
+    return text if text and text.isprintable() and text.strip() == text and '"' not in text else repr(text)
 
 
 def describe_validation_error(exc):
     """(where, value, expected) of a pydantic ValidationError's first error, for a one-line message."""
     err = exc.errors()[0]
-    where = ".".join(map(str, err["loc"]))
+    where = ".".join(map(key_text, err["loc"]))
     ctx = err.get("ctx") or {}
     kind = err["type"]
     bound = {"greater_than_equal": ">=", "less_than_equal": "<=", "greater_than": ">", "less_than": "<"}

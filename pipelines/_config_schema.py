@@ -13,7 +13,7 @@ from typing import Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from dragline.capture._schema_tools import describe_validation_error, fields_markdown
+from dragline.capture._schema_tools import describe_validation_error, fields_markdown, key_text
 from dragline.reconstruct._pipeline import METHODS, SMOOTHINGS
 from dragline.simulate._rig import DISCRETIZATION_LEVELS
 
@@ -80,13 +80,13 @@ def validate_config(doc, path):
     except ValidationError as exc:
         err = exc.errors()[0]
         loc = err["loc"]
-        where = f"[{loc[0]}]" + (f" {'.'.join(map(str, loc[1:]))}" if len(loc) > 1 else "")
+        where = f"[{key_text(loc[0])}]" + (f" {'.'.join(map(key_text, loc[1:]))}" if len(loc) > 1 else "")
         _, value, expected = describe_validation_error(exc)
         if len(loc) == 1 and err["type"] == "extra_forbidden":
-            raise ValueError(f"config {path}: unknown section [{loc[0]}] "
+            raise ValueError(f"config {path}: unknown section [{key_text(loc[0])}] "
                              f"(has {', '.join(RunConfig.model_fields)})") from None
         if len(loc) == 2 and err["type"] == "extra_forbidden":
-            raise ValueError(f"config {path}: unknown key {loc[1]!r} in [{loc[0]}]") from None
+            raise ValueError(f"config {path}: unknown key {str(loc[1])!r} in [{key_text(loc[0])}]") from None
         raise ValueError(f"config {path}: {where} = {value!r}: expected {expected}") from None
 
 

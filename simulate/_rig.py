@@ -164,6 +164,10 @@ def rig_from_dict(doc, source="rig"):
         return _rig_from_doc(doc, source)
     except KeyError as exc:
         raise ValueError(f"{source}: missing key {exc}") from None
+    except ValueError as exc:
+        if str(exc).startswith(f"{source}:"):
+            raise
+        raise ValueError(f"{source}: {exc}") from None
 
 
 def load_rig(path=None):

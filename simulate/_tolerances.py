@@ -35,6 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..capture._schema_tools import key_text
+
 __all__ = ["RigParameter", "parse_tolerances", "apply_parameters", "draw_parameters"]
 
 _ROPE_PROPERTIES = ("static_stiffness", "viscous_stiffness", "viscous_damping")
@@ -109,7 +111,7 @@ def parse_tolerances(doc, bodies, ropes, fixed, source="rig"):
             raise ValueError(f"{source}: tolerance group {g!r} names unknown ropes {unknown}")
     out = []
     for key, spec in doc.get("tolerances", {}).items():
-        where = f"{source}: tolerances.{key}"
+        where = f"{source}: tolerances.{key_text(key)}"
         if not isinstance(spec, dict) or len(spec) != 1 or next(iter(spec)) not in ("relative", "absolute", "factor"):
             raise ValueError(f"{where}: expected one of relative = ..., absolute = ... or factor = ...")
         (how, amount), = spec.items()
