@@ -37,7 +37,7 @@ __all__ += [
     "discretization_study",
     "write_report",
 ]
-from ._diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_diagnosis_json, write_diagnosis_report
+from .diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_diagnosis_json, write_diagnosis_report
 from ._discovery_bench import bench_discovery
 
 __all__ += ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",

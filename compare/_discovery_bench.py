@@ -144,7 +144,7 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=None):
     from ..capture._lab import default_lab_cameras
     from ..capture._session_io import write_session_dir
     from ..simulate import dig_maneuver
-    from ._diagnose import diagnose_path
+    from .diagnose import diagnose_path
 
     folder = os.path.join(workdir, f"case{seed}")
     started = time.perf_counter()
@@ -166,7 +166,7 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=None):
     try:
         doc = diagnose_path(folder, workers=1, seed=seed).doc
         if keep is not None:
-            from ._diagnose import write_diagnosis_json
+            from .diagnose import write_diagnosis_json
 
             os.makedirs(keep, exist_ok=True)
             write_diagnosis_json(os.path.join(keep, f"case{seed}.json"), doc)

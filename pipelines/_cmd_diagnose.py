@@ -5,12 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
-from dragline.compare._diagnose import (
-    diagnose_path,
-    write_diagnosis_json,
-    write_diagnosis_report,
-)
-from dragline.compare._hypotheses import candidate_list
+from dragline.compare.diagnose import candidate_list, diagnose_path, write_diagnosis_json, write_diagnosis_report
 
 from ._guard import guard_outputs, session_inputs
 from ._options import check_output_path, discretization_from_args, rig_from_args

@@ -1,4 +1,4 @@
-"""The verdict's rules (dragline.compare._hypotheses.decide) on hypotheses built by hand.
+"""The verdict's rules (dragline.compare.diagnose._decide) on hypotheses built by hand.
 
 The diagnosis tests run the whole chain on simulated recordings; these pin
 the policy itself, one rule at a time, with hypotheses whose held-out
@@ -9,8 +9,8 @@ import math
 
 import pytest
 
-from dragline.compare._hypotheses import ADEQUATE_RMS, LEFTOVER_SHARE, decide, leftover_share
-from dragline.compare._updating import JOINT_SPAN, joint_value_bounds
+from dragline.compare.diagnose._decide import ADEQUATE_RMS, LEFTOVER_SHARE, decide, leftover_share
+from dragline.compare.diagnose._updating import JOINT_SPAN, joint_value_bounds
 
 THRESHOLD = 100.0
 

@@ -1,4 +1,4 @@
-"""``dragline diagnose``: locate, fit, decide (dragline.compare._diagnose and friends).
+"""``dragline diagnose``: locate, fit, decide (dragline.compare.diagnose._diagnose and friends).
 
 Ground truth is built, not copied: measured tables are simulations with a
 known mechanism (or none) plus white noise of a known level, or with a
@@ -14,9 +14,9 @@ import os
 import numpy as np
 import pandas as pd
 import pytest
-from dragline.compare._diagnose import diagnose, load_recording
-from dragline.compare._hypotheses import Problem, null_threshold
-from dragline.compare._locate import (
+from dragline.compare.diagnose._diagnose import diagnose, load_recording
+from dragline.compare.diagnose._hypotheses import Problem, null_threshold
+from dragline.compare.diagnose._locate import (
     low_pass,
     noise_level,
     time_windows,
@@ -287,7 +287,7 @@ def test_session_directory_is_diagnosed_from_the_motion_alone(tmp_path, nominal_
 
 
 def test_report_is_deterministic(tmp_path, aero_diagnosis):
-    from dragline.compare._diagnose import write_diagnosis_report
+    from dragline.compare.diagnose._diagnose import write_diagnosis_report
 
     a, b = tmp_path / "a.pdf", tmp_path / "b.pdf"
     write_diagnosis_report(a, aero_diagnosis)

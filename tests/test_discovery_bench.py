@@ -4,7 +4,7 @@ import math
 
 import pytest
 from dragline.compare._discovery_bench import MAGNITUDES, _summarise, default_cases
-from dragline.compare._hypotheses import N_GRID
+from dragline.compare.diagnose._hypotheses import N_GRID
 from dragline.simulate import MECHANISMS
 
 

@@ -1,4 +1,4 @@
-"""Model updating and the model's own error budget (dragline.compare._updating).
+"""Model updating and the model's own error budget (dragline.compare.diagnose._updating).
 
 The recording is never made by the model that is updated: its truth is the
 rig with some parameters moved within their tolerances, simulated at a
@@ -15,9 +15,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from dragline.compare._hypotheses import Problem, channels_on
-from dragline.compare._locate import DYNAMIC_CHANNELS
-from dragline.compare._updating import model_error, nuisance_correlation, update_model
+from dragline.compare.diagnose._hypotheses import Problem, channels_on
+from dragline.compare.diagnose._locate import DYNAMIC_CHANNELS
+from dragline.compare.diagnose._updating import model_error, nuisance_correlation, update_model
 from dragline.simulate import apply_parameters, dig_maneuver, parse_physics, simulate
 
 KEPT = ("reels.hoist.zero", "fixed_points.boom_pulley.z", "bodies.bucket.cg_x", "ropes.chain.viscous_damping")
@@ -175,8 +175,8 @@ def test_a_moved_boom_pulley_is_read_from_where_the_recording_measures_the_rope(
 
 def test_a_mismatch_the_finer_model_also_shows_is_marked_as_the_models_own_error():
     """Within MODEL_ERROR_FACTOR of the finer model's difference in its channel and window: the model's error."""
-    from dragline.compare._locate import locate_mismatch
-    from dragline.compare._updating import MODEL_ERROR_FACTOR, mark_model_error
+    from dragline.compare.diagnose._locate import locate_mismatch
+    from dragline.compare.diagnose._updating import MODEL_ERROR_FACTOR, mark_model_error
 
     time = np.arange(0.0, 4.0, 0.005)
     swing = np.sin(2 * np.pi * 0.8 * time)

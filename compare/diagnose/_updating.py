@@ -49,14 +49,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..simulate import (
+from ...simulate import (
     DISCRETIZATION_LEVELS,
     SimulationError,
     StaticsError,
     apply_parameters,
     simulate,
 )
-from ._compare import channel_kind
+from .._compare import channel_kind
 from ._hypotheses import _init, _map, _pool, channels_on
 
 __all__ = ["OFFSET_PRIOR", "update_model", "joint_refit", "model_error", "finer_discretization",
@@ -384,7 +384,7 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     """
     from scipy.optimize import minimize_scalar
 
-    from ..simulate import make_mechanism
+    from ...simulate import make_mechanism
     from ._hypotheses import simulate_channels
 
     note = progress or (lambda msg: None)
@@ -568,7 +568,7 @@ def _prior_rows(nuis, coords, tol, offset_sd, errs):
 
 
 def _main_of(mechanism):
-    from ..simulate import MECHANISMS
+    from ...simulate import MECHANISMS
 
     return MECHANISMS[mechanism.name]["main"]
 

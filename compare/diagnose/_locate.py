@@ -29,8 +29,8 @@ import math
 
 import numpy as np
 
-from ..simulate import ROPE_CHANNELS
-from ._compare import FREE_DECAY_CHANNELS, channel_kind
+from ...simulate import ROPE_CHANNELS
+from .._compare import FREE_DECAY_CHANNELS, channel_kind
 
 __all__ = [
     "DYNAMIC_CHANNELS",

@@ -38,8 +38,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..capture._strict_json import json_ready
-from ..simulate import (
+from ...capture._strict_json import json_ready
+from ...simulate import (
     ROPE_CHANNELS,
     Maneuver,
     dig_maneuver,
@@ -48,15 +48,15 @@ from ..simulate import (
     read_maneuver_csv,
     simulate,
 )
-from ._align import (
+from .._align import (
     MAX_OFFSET,
     check_table,
     estimate_time_offset,
     read_trajectory_table,
     reels_stop_time,
 )
-from ._compare import channel_kind
-from ._decay import free_decay
+from .._compare import channel_kind
+from .._decay import free_decay
 from ._hypotheses import (
     BLOCK_S,
     DECAY_WEIGHT,
@@ -68,16 +68,15 @@ from ._hypotheses import (
     affordable_range,
     autocorrelation_time,
     candidate_list,
-    decide,
     fit_candidates,
-    leftover_share,
     null_threshold,
     profile_uncertainty,
     score_candidate,
     signature_match,
     unavailable_reason,
 )
-from ._files import write_json
+from .._files import write_json
+from ._decide import decide, leftover_share
 from ._locate import (
     DYNAMIC_CHANNELS,
     LOWPASS_S,
@@ -87,7 +86,7 @@ from ._locate import (
     structure_threshold,
     time_windows,
 )
-from ._metrics import channel_metrics
+from .._metrics import channel_metrics
 from ._second_round import second_round
 from ._updating import (
     OFFSET_FINDING,
@@ -233,7 +232,7 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
     ValueError
         Unreadable input, a different rig's markers, no maneuver.
     """
-    from ..capture._mcap_io import read_session
+    from ...capture._mcap_io import read_session
 
     note = progress or (lambda msg: None)
     path = os.fspath(path)
@@ -273,14 +272,14 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
             else:
                 maneuver, source["maneuver"] = _session_maneuver(session, file), f"{file} (session info)"
         cameras, source["calibration"] = _session_cameras(session, file, folder, calibration, note)
-        from ..reconstruct._pipeline import reconstruct_session
+        from ...reconstruct._pipeline import reconstruct_session
 
         try:
             table, _, _, _ = reconstruct_session(session, cameras, rig=rig)
         except ValueError as exc:
             raise ValueError(f"{file}: {exc}") from None
     elif kind == "vicon":
-        from ..reconstruct._pipeline import reconstruct_vicon_csv
+        from ...reconstruct._pipeline import reconstruct_vicon_csv
 
         table, _ = reconstruct_vicon_csv(file, rig=rig)
     else:
@@ -296,8 +295,8 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
 
 
 def _session_cameras(session, file, folder, calibration, note):
-    from ..capture import calibrate
-    from ..capture._cameras import load_cameras
+    from ...capture import calibrate
+    from ...capture._cameras import load_cameras
 
     if calibration is None and folder and os.path.isfile(os.path.join(folder, "cameras.json")):
         calibration = os.path.join(folder, "cameras.json")
@@ -934,6 +933,6 @@ def write_diagnosis_json(path, doc):
 
 def write_diagnosis_report(path, diagnosis):
     """Write the diagnosis PDF (see ``_diagnose_report``)."""
-    from ._diagnose_report import write_report_pdf
+    from ._report import write_report_pdf
 
     write_report_pdf(path, diagnosis)

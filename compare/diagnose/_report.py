@@ -11,9 +11,9 @@ import math
 import numpy as np
 from matplotlib.figure import Figure
 
-from ._compare import channel_kind
+from .._compare import channel_kind
 from ._locate import LOWPASS_S, low_pass
-from ._report import PAGE_SIZE, report_pdf, text_pages
+from .._report import PAGE_SIZE, report_pdf, text_pages
 
 __all__ = ["write_report_pdf"]
 

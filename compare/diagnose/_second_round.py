@@ -12,7 +12,7 @@ significant second one is reported beside it.
 
 from __future__ import annotations
 
-from ..simulate import make_mechanism
+from ...simulate import make_mechanism
 from ._hypotheses import fit_candidates, null_threshold, score_candidate
 
 __all__ = ["second_round"]

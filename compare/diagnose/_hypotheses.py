@@ -1,6 +1,6 @@
-"""Candidate mechanisms: fit each through the simulator, score it on held-out data, decide.
+"""Candidate mechanisms: fit each through the simulator, score it on held-out data.
 
-Steps 2-4 of the diagnosis (``_diagnose``).
+Steps 2-4 of the diagnosis (``_diagnose``); the verdict's rules are ``_decide``.
 
 Objective
 ---------
@@ -67,7 +67,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from ..simulate import (
+from ...simulate import (
     MECHANISMS,
     SimulationError,
     assemble,
@@ -83,7 +83,6 @@ __all__ = [
     "Problem",
     "fit_candidates",
     "null_threshold",
-    "decide",
 ]
 
 # Plausible ranges of the main parameters, used when the registry gives none.
@@ -123,21 +122,6 @@ NULL_QUANTILE = 0.99
 MIN_IMPROVEMENT = 200.0
 # A fitted value in the outermost part of its range is "at the bound".
 BOUND_TOLERANCE = 0.05  # in ln p
-# Verdict policy (see ``decide``).
-EXPLAINED_MIN = 0.75
-# The named mechanism must describe the recording, not only improve it:
-# beyond ADEQUATE_RMS noise sigmas of held-out residual it must leave at
-# most LEFTOVER_SHARE of the updated model's excess over noise. Measured on
-# the realistic benchmark: a hidden sheave bearing damping (a viscous drag
-# on the rope's slide, not a candidate) left 5.3 sigma after the best
-# candidate, chain-link friction: 15 % of the excess, although it had taken
-# 89 % of the structure; a hidden pulley friction (the right candidate, a
-# 51-sigma effect) left 6.5 sigma, 1.6 % of the excess.
-ADEQUATE_RMS = 2.0
-LEFTOVER_SHARE = 0.10
-# A mechanism whose signature correlates with a rig parameter's change
-# beyond this cannot be told apart from it.
-CONFOUNDED = 0.95
 
 
 def candidate_list(names=None):
@@ -684,119 +668,3 @@ def signature_match(problem, nominal_residual, signature):
     g = _weighted_signal(problem, signature)
     den = math.sqrt(float((z * z).sum()) * float((g * g).sum()))
     return float((z * g).sum()) / den if den > 0 else 0.0
-
-
-# ---------------------------------------------------------------- decision
-
-def leftover_share(hypothesis):
-    """Share of the excess held-out chi2 over noise that a candidate leaves (0 = all explained)."""
-    before, after = hypothesis.get("rms_before"), hypothesis.get("rms_after")
-    if before is None or after is None or before**2 <= 1.0:
-        return 0.0
-    return max(0.0, after**2 - 1.0) / (before**2 - 1.0)
-
-
-def decide(hypotheses, threshold, structured_before, structured_after, offsets_ok=True, offsets_note=None,
-           updates=()):
-    """The verdict: a mechanism, "none" or "unexplained", and why.
-
-    Parameters
-    ----------
-    hypotheses : list of dict
-        Ranked best first (largest held-out ``improvement``), each with
-        ``name``, ``improvement``, ``significant``, ``at_bound``,
-        ``explained_fraction``.
-    threshold : float
-        Null-test threshold on the held-out improvement.
-    structured_before, structured_after : list of dict
-        Significant mismatch entries (``_locate.locate_mismatch``) of the
-        nominal model and of the best significant candidate.
-    offsets_ok : bool
-        False when constant offsets say the rig geometry or calibration
-        differs from the model.
-    updates : sequence of str
-        The parameter updates the recording supports (``_updating``),
-        named in a "none" verdict: the updated model explains the recording.
-
-    Rules
-    -----
-    1. Constant offsets beyond tolerance: "unexplained" (the geometry
-       differs; a dynamic mechanism cannot be trusted).
-    2. No significant candidate: "none" when the nominal model leaves no
-       structured mismatch, else "unexplained".
-    3. The best significant candidate at either end of its plausible
-       range, or at the end of what could be simulated: "unexplained" (the
-       effect is larger, or other, than that mechanism could plausibly give).
-    4. The runner-up significant too, and the two held-out improvements
-       closer than the threshold: "unexplained" (indistinguishable).
-    4b. The best candidate's signature correlates with a rig parameter's
-       sensitivity beyond ``CONFOUNDED``: "unexplained" (it cannot be told
-       apart from a parameter change within tolerance).
-    5. A structured mismatch remains and the best explains less than
-       ``EXPLAINED_MIN`` of the structured mismatch: "unexplained".
-    5b. The best leaves a held-out RMS residual (``rms_after``) beyond
-       ``ADEQUATE_RMS`` noise sigmas and more than ``LEFTOVER_SHARE`` of
-       the excess chi2 over noise before it (``rms_before``):
-       "unexplained" (it takes up part of an effect whose law is not its
-       own).
-    6. Otherwise the best candidate.
-
-    Returns
-    -------
-    verdict : str
-    reason : str
-    """
-    def where(entries):
-        e = entries[0]
-        return f"{e['channel']} in {e['window']} ({e['t_start']:.1f}-{e['t_end']:.1f} s)"
-
-    if not offsets_ok:
-        return "unexplained", offsets_note
-    sig = [h for h in hypotheses if h.get("significant")]
-    if not sig:
-        if structured_before:
-            return "unexplained", (
-                f"structured mismatch beyond noise ({len(structured_before)} channel windows, largest at "
-                f"{where(structured_before)}) that no candidate reduces more than noise alone would "
-                f"(held-out threshold {threshold:.1f})")
-        if updates:
-            return "none", (f"the updated model fits within measurement noise (updates: {'; '.join(updates)}): no "
-                            f"structured mismatch is left, and no candidate improves held-out data more than noise "
-                            f"alone would (threshold {threshold:.1f})")
-        return "none", (f"the nominal model fits within measurement noise: no structured mismatch, and no "
-                        f"candidate improves held-out data more than noise alone would (threshold {threshold:.1f})")
-    best = sig[0]
-    if best["at_bound"]:
-        where_ = {"upper": "upper end of its plausible range", "lower": "lower end of its plausible range",
-                  "search_limit": "end of the range that could be simulated"}[best["at_bound"]]
-        return "unexplained", (f"{best['name']} improves the fit only at the {where_} "
-                               f"({best['main_parameter']} = {best['parameters'][best['main_parameter']]:.3g}); "
-                               "the mismatch is not what it can plausibly explain")
-    if len(sig) > 1 and best["improvement"] - sig[1]["improvement"] < threshold:
-        return "unexplained", (f"{best['name']} and {sig[1]['name']} explain the mismatch about equally well "
-                               f"(held-out improvements {best['improvement']:.1f} and {sig[1]['improvement']:.1f}, "
-                               f"closer than the noise threshold {threshold:.1f}); the data cannot tell them apart")
-    confounded = [e for e in best.get("nuisance_correlation") or () if abs(e["correlation"]) > CONFOUNDED]
-    if confounded:
-        e = confounded[0]
-        return "unexplained", (f"{best['name']} would explain the mismatch, but its signature is a change of "
-                               f"{e['parameter']} within the rig's tolerance (correlation {e['correlation']:+.2f}); "
-                               "the recording cannot tell the mechanism from that parameter")
-    frac = best.get("explained_fraction")
-    if structured_after and frac is not None and frac < EXPLAINED_MIN:
-        return "unexplained", (f"{best['name']} is the best candidate but explains only {100 * frac:.0f} % of the "
-                               f"structured mismatch; a structured mismatch remains, largest at "
-                               f"{where(structured_after)}")
-    left = leftover_share(best)
-    if best.get("rms_after", 0.0) > ADEQUATE_RMS and left > LEFTOVER_SHARE:
-        return "unexplained", (f"{best['name']} is the best candidate, but leaves {100 * left:.0f} % of the excess over "
-                               f"noise (held-out residual {best['rms_after']:.1f} times the noise; a mechanism that "
-                               f"describes the recording leaves at most {100 * LEFTOVER_SHARE:.0f} %): it takes up part "
-                               "of an effect whose law is not its own")
-    reason = (f"{best['name']} improves held-out data by {best['improvement']:.1f} (chi2), "
-              f"{best['score']:.1f} times what noise alone gives")
-    if len(sig) > 1:
-        reason += f"; runner-up {sig[1]['name']} by {sig[1]['improvement']:.1f}"
-    if structured_after:
-        reason += f"; a smaller structured mismatch remains at {where(structured_after)}"
-    return best["name"], reason

@@ -1,0 +1,22 @@
+"""The diagnosis: what physics the model leaves out, proven on the recording itself.
+
+One module per step (docs/diagnosis.md states the method):
+
+- ``_locate``: where and when the nominal model misses (channel x window);
+- ``_updating``: the model's own numerical error (``model_error``) and the
+  rig parameters updated within their tolerances (``update_model``,
+  ``joint_refit``);
+- ``_hypotheses``: each candidate mechanism fitted through the simulator on
+  top of the updated rig, scored on held-out data, the noise's null test;
+- ``_decide``: the verdict's rules;
+- ``_second_round``: the other candidates on top of a named one;
+- ``_report``: the diagnosis pages of the PDF;
+- ``_diagnose``: the recording read (a session, a VICON export or a
+  trajectory table) and the steps run in order.
+"""
+
+from ._diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_diagnosis_json, write_diagnosis_report
+from ._hypotheses import candidate_list
+
+__all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
+           "write_diagnosis_report", "candidate_list"]
