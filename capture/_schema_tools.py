@@ -30,9 +30,10 @@ def describe_validation_error(exc):
         expected = f"one of {ctx.get('expected')}"
     elif kind == "string_too_short":
         expected = "a non-empty string"
-    elif kind in ("too_short", "too_long"):
-        expected = err["msg"].lower().replace("list should have", "").strip()
-        expected = f"a list of {expected}"
+    elif kind == "too_short":
+        expected = f"at least {ctx.get('min_length')} items (it has {ctx.get('actual_length')})"
+    elif kind == "too_long":
+        expected = f"at most {ctx.get('max_length')} items (it has {ctx.get('actual_length')})"
     elif kind == "value_error":
         expected = err["msg"].removeprefix("Value error, ")
     else:

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ._maneuver_schema import MAX_ROWS, check_maneuver_columns
+
 __all__ = ["Maneuver", "dig_maneuver", "read_maneuver_csv", "write_maneuver_csv"]
 
 
@@ -107,7 +109,8 @@ def read_maneuver_csv(path):
     Raises
     ------
     ValueError
-        One line naming the file and what is wrong with it.
+        One line naming the file and what is wrong with it (the schema is
+        ``_maneuver_schema``, docs/schemas.md).
     """
     try:
         frame = pd.read_csv(path)
@@ -123,13 +126,38 @@ def read_maneuver_csv(path):
     for name in point_names:
         if not all(f"{name}.{a}" in frame.columns for a in "xyz"):
             raise ValueError(f"maneuver file {path}: point {name!r} needs .x, .y and .z columns")
+    if len(frame) == 0:
+        raise ValueError(f"maneuver file {path} is empty (a header and no rows)")
+    if len(frame) > MAX_ROWS:
+        raise ValueError(f"maneuver file {path} has {len(frame)} rows; at most {MAX_ROWS} are read")
+    num = {}
+    for c in frame.columns:
+        values = pd.to_numeric(frame[c], errors="coerce")
+        bad = values.isna() & frame[c].notna()
+        if bad.any():
+            row = int(np.argmax(bad.to_numpy()))
+            raise ValueError(f"maneuver file {path}: column {c}, row {row + 2} = {frame[c].iloc[row]!r}: "
+                             "expected a number")
+        num[c] = values.to_numpy(float)
+    columns = {c: num[c].tolist() for c in ("time", "hoist_length", "drag_length")}
+    columns["points"] = {name: np.column_stack([num[f"{name}.{a}"] for a in "xyz"]).tolist() for name in point_names}
+    known = {"time", "hoist_length", "drag_length"} | {f"{n}.{a}" for n in point_names for a in "xyz"}
+    columns.update({c: num[c].tolist() for c in frame.columns if c not in known})  # refused by the schema
+    return maneuver_from_columns(columns, path)
+
+
+def maneuver_from_columns(columns, path):
+    """A Maneuver from its columns (``_maneuver_schema.ManeuverColumns`` layout), checked against the schema.
+
+    Raises
+    ------
+    ValueError
+        One line naming ``path``, the column and the row.
+    """
+    check_maneuver_columns(columns, path)
+    points = {name: np.asarray(xyz, float) for name, xyz in columns.get("points", {}).items()}
     try:
-        num = {c: pd.to_numeric(frame[c], errors="raise").to_numpy(float) for c in frame.columns}
-    except (ValueError, TypeError):
-        raise ValueError(f"maneuver file {path} has non-numeric values") from None
-    points = {name: np.column_stack([num[f"{name}.{a}"] for a in "xyz"]) for name in point_names}
-    try:
-        return Maneuver(num["time"], num["hoist_length"], num["drag_length"], points)
+        return Maneuver(columns["time"], columns["hoist_length"], columns["drag_length"], points)
     except ValueError as exc:
         raise ValueError(f"maneuver file {path}: {exc}") from None
 

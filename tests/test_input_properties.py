@@ -37,7 +37,8 @@ from dragline.capture._lab import default_lab_cameras
 from dragline.capture._mcap_io import INFO_TOPIC
 from dragline.capture._session_schema import check_session_info
 from dragline.pipelines._config_schema import validate_config
-from dragline.simulate import rig_from_dict
+from dragline.simulate import dig_maneuver, rig_from_dict
+from dragline.simulate._maneuver import maneuver_from_columns
 from dragline.simulate._rig_schema import check_rig_doc
 
 PATH = "lab/input.file"
@@ -68,6 +69,12 @@ def _config_doc():
             "reconstruct": {"method": "svd", "smoothing": "none", "max_gap": 5}}
 
 
+def _maneuver_doc():
+    m = dig_maneuver()
+    return {"time": m.time.tolist(), "hoist_length": m.hoist_length.tolist(), "drag_length": m.drag_length.tolist(),
+            "points": {"boom_pulley": [[-5.35, 0.0, -4.06]] * m.time.size}}
+
+
 def _load_rig(doc):
     check_rig_doc(doc, PATH)
     return rig_from_dict(doc, PATH)
@@ -83,13 +90,14 @@ READERS = {
     "session": lambda doc: check_session_info(doc, PATH),
     "cameras": _load_cameras,
     "config": lambda doc: validate_config(doc, PATH),
+    "maneuver": lambda doc: maneuver_from_columns(doc, PATH),
 }
 
 
 @pytest.fixture(scope="module")
 def documents(tmp_path_factory):
     return {"rig": _rig_doc(), "session": _session_info(), "cameras": _cameras_doc(tmp_path_factory),
-            "config": _config_doc()}
+            "config": _config_doc(), "maneuver": _maneuver_doc()}
 
 
 def _leaves(node, path=()):

@@ -64,3 +64,12 @@ def test_the_docs_list_the_rig_schema_as_generated():
     block = re.search(r"<!-- generated: rig schema -->\n(.*?)<!-- end generated -->", doc, re.S).group(1)
     assert block == rig_markdown()
     assert "| `ropes.NAME.length` |" in block and "| `bodies.NAME.mass` |" in block
+
+
+def test_the_docs_list_the_maneuver_schema_as_generated():
+    from dragline.simulate._maneuver_schema import maneuver_markdown
+
+    doc = (REPO / "docs" / "schemas.md").read_text()
+    block = re.search(r"<!-- generated: maneuver schema -->\n(.*?)<!-- end generated -->", doc, re.S).group(1)
+    assert block == maneuver_markdown()
+    assert "| `hoist_length` |" in block

@@ -48,9 +48,12 @@ def test_user_maneuver_csv_is_used(tmp_path):
     [
         ("time,hoist_length,drag_length\n", "empty"),
         ("time,hoist_length,drag_length\n0,8.6,4.2\n2,8.7,4.1\n1,8.8,4.0\n", "not strictly increasing"),
-        ("time,hoist_length,drag_length\n0,8.6,-4.2\n", "positive"),
+        ("time,hoist_length,drag_length\n0,8.6,-4.2\n", "column drag_length, row 2 = -4.2: expected a value > 0"),
         ("time,hoist\n0,8.6\n", "lacks column"),
-        ("time,hoist_length,drag_length\n0,8.6,abc\n", "non-numeric"),
+        ("time,hoist_length,drag_length\n0,8.6,abc\n", "column drag_length, row 2 = 'abc': expected a number"),
+        ("time,hoist_length,drag_length\n0,8.6,4.2\n1,,4.2\n", "column hoist_length, row 3 = nan: expected a finite"),
+        ("time,hoist_length,drag_length,hoist_lenght\n0,8.6,4.2,8.6\n", "unknown column 'hoist_lenght'"),
+        ("time,hoist_length,drag_length\n0,8.6,4.2\n1e300,8.6,4.2\n", "column time, row 3"),
     ],
 )
 def test_bad_maneuver_tables_exit_2_with_one_line(tmp_path, capsys, rows, message):

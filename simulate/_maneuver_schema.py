@@ -1,0 +1,90 @@
+"""The declared schema of a maneuver CSV (``--maneuver``; a session's ``maneuver.csv``).
+
+One model per file, its columns as lists: types, units and ranges stated
+once, checked when the file is read (pydantic v2 in strict mode, as the
+other declared inputs; ``docs/schemas.md``). What needs the rig - a rope
+reeled below its elements' length, a reel faster than a reel moves - is
+checked when the maneuver meets the rig (``_simulate.check_reel_table``).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+__all__ = ["ManeuverColumns", "check_maneuver_columns", "maneuver_markdown", "MAX_ROWS"]
+
+MAX_ROWS = 1_000_000
+MAX_TIME_S = 1e6  # eleven days
+MAX_LENGTH_M = 1e4
+
+_Time = Annotated[float, Field(ge=-MAX_TIME_S, le=MAX_TIME_S, allow_inf_nan=False)]
+_Length = Annotated[float, Field(gt=0, le=MAX_LENGTH_M, allow_inf_nan=False)]
+_Coordinate = Annotated[float, Field(ge=-MAX_LENGTH_M, le=MAX_LENGTH_M, allow_inf_nan=False)]
+
+
+class ManeuverColumns(BaseModel):
+    """A reel table: one row per instant, linearly interpolated between rows."""
+
+    model_config = ConfigDict(strict=True, frozen=True, extra="forbid")
+
+    time: list[_Time] = Field(min_length=1, max_length=MAX_ROWS, description="s, strictly increasing")
+    hoist_length: list[_Length] = Field(min_length=1, max_length=MAX_ROWS, description="rope paid out (m)")
+    drag_length: list[_Length] = Field(min_length=1, max_length=MAX_ROWS, description="rope paid out (m)")
+    points: dict[str, list[Annotated[list[_Coordinate], Field(min_length=3, max_length=3)]]] = Field(
+        default_factory=dict, description="optional `<point>.x`, `.y`, `.z` columns moving a fixed point (m)")
+
+    @model_validator(mode="after")
+    def _rows(self):
+        n = len(self.time)
+        for name in ("hoist_length", "drag_length"):
+            if len(getattr(self, name)) != n:
+                raise ValueError(f"{name} has {len(getattr(self, name))} rows, time {n}")
+        for name, rows in self.points.items():
+            if len(rows) != n:
+                raise ValueError(f"point {str(name)!r} has {len(rows)} rows, time {n}")
+        for k in range(1, n):
+            if not self.time[k] > self.time[k - 1]:
+                raise ValueError(f"time is not strictly increasing at row {k + 2}")
+        return self
+
+
+def _row_of(loc):
+    """'column hoist_length, row 7' from a pydantic location (the header is row 1)."""
+    from ..capture._schema_tools import key_text
+
+    if len(loc) >= 2 and isinstance(loc[1], int):
+        return f"column {key_text(loc[0])}, row {loc[1] + 2}"
+    if loc and loc[0] == "points" and len(loc) >= 3:
+        return f"point {key_text(loc[1])}, row {loc[2] + 2}" if isinstance(loc[2], int) else f"point {key_text(loc[1])}"
+    return f"column {key_text(loc[0])}" if loc else ""
+
+
+def check_maneuver_columns(columns, path):
+    """``columns`` checked against `ManeuverColumns`; ValueError with one line naming the file otherwise."""
+    from ..capture._schema_tools import describe_validation_error
+
+    try:
+        ManeuverColumns.model_validate(columns)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        _, value, expected = describe_validation_error(exc)
+        where = _row_of(err["loc"])
+        if err["type"] == "extra_forbidden":
+            raise ValueError(f"maneuver file {path}: unknown column {str(err['loc'][0])!r} (the columns are time, "
+                             "hoist_length, drag_length and optional <point>.x, .y, .z)") from None
+        if err["type"] == "value_error" or not where:
+            raise ValueError(f"maneuver file {path}: {expected}") from None
+        if err["type"] == "missing":
+            raise ValueError(f"maneuver file {path}: {where}: expected {expected}") from None
+        raise ValueError(f"maneuver file {path}: {where} = {value!r}: expected {expected}") from None
+    return columns
+
+
+def maneuver_markdown():
+    """The maneuver schema as a Markdown table (``docs/schemas.md`` holds this text)."""
+    from ..capture._schema_tools import fields_markdown
+
+    header = ["| column | type | default | allowed | meaning |", "|---|---|---|---|---|"]
+    return "\n".join(header + fields_markdown(ManeuverColumns)) + "\n"
