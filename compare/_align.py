@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from ..simulate import ROPE_CHANNELS, trajectory_columns
+from ..simulate._table_schema import MAX_ROWS, check_trajectory_columns
 
 __all__ = [
     "read_trajectory_table",
@@ -60,8 +61,11 @@ def read_trajectory_table(path, side="trajectory"):
     Raises
     ------
     ValueError
-        Missing or unreadable file, no ``time`` column, non-finite or
-        non-increasing times, fewer than 3 rows.
+        Missing or unreadable file, or a table its schema refuses
+        (``simulate._table_schema``, docs/schemas.md): no ``time`` column,
+        non-finite or non-increasing times, fewer than 3 rows, a cell that
+        is not a number, infinity. One line naming the file, the column and
+        the row.
     """
     try:
         frame = pd.read_csv(path)
@@ -73,9 +77,26 @@ def read_trajectory_table(path, side="trajectory"):
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise ValueError(f"{side} table {path} cannot be read: {first}") from None
     frame.columns = [str(c).strip() for c in frame.columns]
-    frame = frame.apply(pd.to_numeric, errors="coerce")
-    check_table(frame, f"{side} table {path}")
-    return frame
+    what = f"{side} table {path}"
+    if "time" not in frame.columns:
+        raise ValueError(f"{what} has no 'time' column")
+    if len(frame.columns) != len(set(frame.columns)):
+        dup = next(c for c in frame.columns if list(frame.columns).count(c) > 1)
+        raise ValueError(f"{what}: column {dup!r} appears twice")
+    if len(frame) > MAX_ROWS:
+        raise ValueError(f"{what} has {len(frame)} rows; at most {MAX_ROWS} are read")
+    numeric = {}
+    for c in frame.columns:
+        values = pd.to_numeric(frame[c], errors="coerce")
+        bad = values.isna() & frame[c].notna()
+        if bad.any():  # a cell that is not a number is an error, never a silent gap
+            row = int(np.argmax(bad.to_numpy()))
+            raise ValueError(f"{what}: column {c}, row {row + 2} = {frame[c].iloc[row]!r}: expected a number")
+        numeric[c] = values.to_numpy(float)
+    check_trajectory_columns({"time": numeric["time"].tolist(),
+                              "channels": {c: [None if np.isnan(v) else v for v in numeric[c].tolist()]
+                                           for c in frame.columns if c != "time"}}, what)
+    return pd.DataFrame(numeric, columns=list(frame.columns))
 
 
 def check_table(table, what):

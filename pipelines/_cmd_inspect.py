@@ -18,6 +18,8 @@ from dragline.capture import read_session, summarize_mcap, summarize_vicon_csv
 from dragline.capture._cameras import camera_centre, load_cameras
 from dragline.capture._session_io import session_file
 from dragline.capture._strict_json import json_text
+from dragline.compare import read_trajectory_table
+from dragline.simulate import read_maneuver_csv
 
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
 
@@ -62,17 +64,19 @@ def _mcap(path, folder=None):
 
 
 def _table(path):
+    """Summary of a table CSV (a reel table or a trajectory table), read through its schema; None if not a table."""
     try:
-        frame = pd.read_csv(path)
+        header = pd.read_csv(path, nrows=0)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError):
         return None
-    frame.columns = [str(c).strip() for c in frame.columns]
-    if "time" not in frame.columns:
+    columns = [str(c).strip() for c in header.columns]
+    if "time" not in columns:
         return None
-    try:
-        num = frame.apply(pd.to_numeric, errors="raise")
-    except (ValueError, TypeError):
-        return None
+    reel_table = {"hoist_length", "drag_length"} <= set(columns) and all(
+        c in ("time", "hoist_length", "drag_length") or c.endswith((".x", ".y", ".z")) for c in columns)
+    # Read as the commands read it: its schema's error (file, column, row) is the answer for a bad table.
+    num = read_maneuver_csv(path).to_frame() if reel_table else read_trajectory_table(path)
+    frame = num
     t = num["time"].to_numpy(float)
     dt = np.diff(t)
     entities = sorted({c.split(".", 1)[0] for c in frame.columns if "." in c})

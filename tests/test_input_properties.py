@@ -39,6 +39,7 @@ from dragline.capture._session_schema import check_session_info
 from dragline.pipelines._config_schema import validate_config
 from dragline.simulate import dig_maneuver, rig_from_dict
 from dragline.simulate._maneuver import maneuver_from_columns
+from dragline.simulate._table_schema import check_trajectory_columns
 from dragline.simulate._rig_schema import check_rig_doc
 
 PATH = "lab/input.file"
@@ -91,13 +92,16 @@ READERS = {
     "cameras": _load_cameras,
     "config": lambda doc: validate_config(doc, PATH),
     "maneuver": lambda doc: maneuver_from_columns(doc, PATH),
+    "trajectory": lambda doc: check_trajectory_columns(doc, PATH),
 }
 
 
 @pytest.fixture(scope="module")
 def documents(tmp_path_factory):
     return {"rig": _rig_doc(), "session": _session_info(), "cameras": _cameras_doc(tmp_path_factory),
-            "config": _config_doc(), "maneuver": _maneuver_doc()}
+            "config": _config_doc(), "maneuver": _maneuver_doc(),
+            "trajectory": {"time": [0.0, 0.01, 0.02, 0.03], "channels": {"bucket.x": [0.1, None, 0.12, 0.13],
+                                                                      "bucket.pitch": [0.0, 0.01, 0.02, 0.01]}}}
 
 
 def _leaves(node, path=()):

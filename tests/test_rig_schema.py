@@ -73,3 +73,11 @@ def test_the_docs_list_the_maneuver_schema_as_generated():
     block = re.search(r"<!-- generated: maneuver schema -->\n(.*?)<!-- end generated -->", doc, re.S).group(1)
     assert block == maneuver_markdown()
     assert "| `hoist_length` |" in block
+
+
+def test_the_docs_list_the_trajectory_schema_as_generated():
+    from dragline.simulate._table_schema import trajectory_markdown
+
+    doc = (REPO / "docs" / "schemas.md").read_text()
+    block = re.search(r"<!-- generated: trajectory schema -->\n(.*?)<!-- end generated -->", doc, re.S).group(1)
+    assert block == trajectory_markdown()

@@ -44,13 +44,25 @@ def test_write_json_is_strict_and_leaves_no_temporary(tmp_path):
     assert os.listdir(tmp_path) == ["out.json"]
 
 
-def test_inspect_json_of_a_table_with_non_finite_cells_is_strict(tmp_path, capsys):
+def test_inspect_json_of_a_table_with_gaps_is_strict(tmp_path, capsys):
     table = tmp_path / "t.csv"
-    table.write_text("time,bucket.x\nnan,1\n0.01,inf\n0.02,3\n")
+    table.write_text("time,bucket.x\n0,1\n0.01,\n0.02,3\n")
     assert main(["inspect", "--json", str(table)]) == 0
     doc = strict_loads(capsys.readouterr().out)
-    assert doc["time_start_s"] is None and doc["time_end_s"] == pytest.approx(0.02)
-    assert doc["nan_values"] == {"time": 1}
+    assert doc["time_start_s"] == 0.0 and doc["time_end_s"] == pytest.approx(0.02)
+    assert doc["nan_values"] == {"bucket.x": 1}
+
+
+@pytest.mark.parametrize("rows, words", [
+    ("nan,1\n0.01,2\n0.02,3\n", "column time, row 2"),  # inspect --json once printed NaN for it
+    ("0,1\n0.01,inf\n0.02,3\n", "column bucket.x, row 3 = inf"),
+])
+def test_a_table_with_a_non_finite_time_or_cell_is_refused(tmp_path, capsys, rows, words):
+    table = tmp_path / "t.csv"
+    table.write_text("time,bucket.x\n" + rows)
+    assert main(["inspect", "--json", str(table)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(table) in err[0] and words in err[0], err
 
 
 def test_every_json_the_ci_run_wrote_is_strict():
