@@ -123,14 +123,6 @@ DIFFERENT_RIG = 5.0
 # A mechanism must explain at least this share of the chi2 the updated
 # model leaves above noise (see ``diagnose``).
 MODEL_ERROR_SHARE = 0.25
-# Beyond the lead, a candidate is refitted jointly with the rig parameters
-# (about 70-140 simulations each) when its signature looks this much like
-# a parameter change: updating may then have taken up its effect. A sheave
-# inertia that updating had read as cluster mass (correlation 0.84) scored
-# 0.18 times the threshold on top of the updated rig; refitting the
-# runner-up by improvement instead cost 110-135 simulations in three of
-# three realistic cases and changed no verdict.
-ABSORBED = 0.7
 FREE_DECAY_KEYS = ("frequency_hz", "damping_ratio", "amplitude", "shape", "confidence", "decay_rate",
                    "decrement_per_cycle", "quadratic_coefficient")
 DECAY_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch", "drag_cluster.x", "spreader_bar.pitch",
@@ -685,18 +677,16 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     if update is not None and scored:
         # Updating ran before any mechanism, so the parameters took up what
         # they could of a real one (a sheave's inertia read as cluster mass):
-        # on top of the updated rig its score is too low. The lead, and the
-        # one most like a parameter change, are refitted jointly with the
-        # parameters; only candidates that could be named (off the bounds of
-        # their range): one at a bound would spend the budget on a dead end.
+        # on top of the updated rig its score is too low. The lead among the
+        # candidates that could be named (off the bounds of their range) is
+        # refitted jointly with the parameters: one at a bound would spend
+        # the budget on a dead end. Refitting the runner-up too cost 70-135
+        # simulations on each of six realistic recordings and changed no
+        # verdict (docs/diagnosis.md).
         eligible = sorted((c for c in runnable if scored[c["name"]]["value"] > 0
                            and scored[c["name"]]["improvement"] > 0 and not scored[c["name"]]["at_bound"]),
                           key=lambda c: -scored[c["name"]]["improvement"])
-        likeness = {c["name"]: max([abs(e["correlation"]) for e in nuisance_correlation(
-            problem, scored[c["name"]]["sim"] - base_sim, update, most=1)], default=0.0) for c in eligible[1:]}
-        absorbed = [c for c in eligible[1:] if likeness[c["name"]] >= ABSORBED]
-        chosen = eligible[:1] + ([max(absorbed, key=lambda c: likeness[c["name"]])] if absorbed else [])
-        for lead in chosen:
+        for lead in eligible[:1]:
             s = scored[lead["name"]]
             note(f"refitting {lead['name']} and the rig parameters together")
             joint = joint_refit(plain_problem, nominal_ctx, update,
