@@ -17,7 +17,9 @@ EXPLAINED_MIN = 0.75
 # on the rope's slide, not a candidate) left 5.3 sigma after the best
 # candidate, chain-link friction: 15 % of the excess, although it had taken
 # 89 % of the structure; a hidden pulley friction (the right candidate, a
-# 51-sigma effect) left 6.5 sigma, 1.6 % of the excess.
+# 51-sigma effect) left 6.5 sigma, 1.6 % of the excess. The floor matters
+# for weak effects: the right aero drag left 9.9 % of a small excess, at
+# 1.15 sigma.
 ADEQUATE_RMS = 2.0
 LEFTOVER_SHARE = 0.10
 # A mechanism whose signature correlates with a rig parameter's change
@@ -42,7 +44,8 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
     hypotheses : list of dict
         Ranked best first (largest held-out ``improvement``), each with
         ``name``, ``improvement``, ``significant``, ``at_bound``,
-        ``explained_fraction``.
+        ``explained_fraction``, ``rms_before`` and ``rms_after`` (held-out
+        RMS residual in noise sigmas, without and with the candidate).
     threshold : float
         Null-test threshold on the held-out improvement.
     structured_before, structured_after : list of dict

@@ -16,11 +16,11 @@ The steps on one recording (``docs/diagnosis.md`` states the method):
    updated model, the parameters refitted with it (linearly for every
    candidate, nonlinearly for the leading one: ``_updating.joint_refit``),
    and score it on held-out data (``_hypotheses``).
-5. **Decide**: a mechanism only when its held-out improvement beats what
-   noise alone gives and the model-error budget, at no edge of its range,
-   not confounded with a parameter; "none" when the updated model fits
-   within noise (with the updates that made it fit); "unexplained"
-   otherwise.
+5. **Decide** (``_decide``): a mechanism only when its held-out
+   improvement beats what noise alone gives and the model-error budget, at
+   no edge of its range, not confounded with a parameter, and leaving the
+   recording near its noise; "none" when the updated model fits within
+   noise (with the updates that made it fit); "unexplained" otherwise.
 
 Only the motion is read: from a session, the calibration takes and the
 trial's centroids (``capture.mcap``) and the reel table; nothing else the
@@ -76,6 +76,7 @@ from ._hypotheses import (
     unavailable_reason,
 )
 from .._files import write_json
+from .._metrics import channel_metrics
 from ._decide import decide, leftover_share
 from ._locate import (
     DYNAMIC_CHANNELS,
@@ -86,7 +87,6 @@ from ._locate import (
     structure_threshold,
     time_windows,
 )
-from .._metrics import channel_metrics
 from ._second_round import second_round
 from ._updating import (
     OFFSET_FINDING,
