@@ -14,7 +14,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from ._schema_tools import describe_validation_error, fields_markdown, key_text
+from ._schema_tools import describe_validation_error, fields_markdown, key_text, short_repr
 
 __all__ = ["CamerasFile", "check_cameras_doc", "cameras_markdown"]
 
@@ -96,9 +96,7 @@ def check_cameras_doc(doc, path):
             loc = exc.errors()[0]["loc"]
             camera = _camera_label(doc, loc)
             raise ValueError(f"{path}: {camera or 'cameras'}: {expected}") from None
-        shown = repr(value)
-        if len(shown) > 60:
-            shown = shown[:57] + "..."
+        shown = short_repr(value)
         if exc.errors()[0]["type"] == "missing":
             raise ValueError(f"{path}: {_where(doc, exc)}: expected {expected}") from None
         raise ValueError(f"{path}: {_where(doc, exc)} = {shown}: expected {expected}") from None

@@ -4,13 +4,19 @@ from __future__ import annotations
 
 import typing
 
-__all__ = ["describe_validation_error", "fields_markdown", "key_text"]
+__all__ = ["describe_validation_error", "fields_markdown", "key_text", "short_repr"]
 
 
 def key_text(key):
     """A document key as shown in a one-line message: as is when plain, quoted when it holds odd characters."""
     text = str(key)
     return text if text and text.isprintable() and text.strip() == text and '"' not in text else repr(text)
+
+
+def short_repr(value, most=60):
+    """repr(value), cut to ``most`` characters for a one-line message."""
+    shown = repr(value)
+    return shown if len(shown) <= most else shown[:most - 3] + "..."
 
 
 def describe_validation_error(exc):

@@ -12,7 +12,7 @@ from typing import Annotated, Any, Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from ._schema_tools import describe_validation_error, fields_markdown
+from ._schema_tools import describe_validation_error, fields_markdown, short_repr
 
 __all__ = ["SessionInfo", "check_session_info", "session_info_markdown"]
 
@@ -97,9 +97,7 @@ def check_session_info(info, path):
         where, value, expected = describe_validation_error(exc)
         if not where:  # a whole-document check (sizes, names)
             raise ValueError(f"{path}: session info: {expected}") from None
-        shown = repr(value)
-        if len(shown) > 60:
-            shown = shown[:57] + "..."
+        shown = short_repr(value)
         if exc.errors()[0]["type"] == "missing":
             raise ValueError(f"{path}: session info {where}: expected {expected}") from None
         raise ValueError(f"{path}: session info {where} = {shown}: expected {expected}") from None

@@ -113,7 +113,7 @@ class RigFile(_Strict):
 
 def check_rig_doc(doc, source):
     """``doc`` (parsed TOML) checked against `RigFile`; ValueError with one line naming the file otherwise."""
-    from ..capture._schema_tools import describe_validation_error
+    from ..capture._schema_tools import describe_validation_error, short_repr
 
     try:
         RigFile.model_validate(doc)
@@ -121,9 +121,7 @@ def check_rig_doc(doc, source):
         where, value, expected = describe_validation_error(exc)
         if exc.errors()[0]["type"] == "value_error" or not where:
             raise ValueError(f"{source}: {where + ': ' if where else ''}{expected}") from None
-        shown = repr(value)
-        if len(shown) > 60:
-            shown = shown[:57] + "..."
+        shown = short_repr(value)
         if exc.errors()[0]["type"] == "missing":
             raise ValueError(f"{source}: {where}: expected {expected}") from None
         raise ValueError(f"{source}: {where} = {shown}: expected {expected}") from None
