@@ -129,7 +129,10 @@ class _Lines:
     def number(self, cell):
         if self.delimiter == ";":
             cell = cell.replace(",", ".")
-        return float(cell)
+        value = float(cell)
+        if not math.isfinite(value):  # a gap is an empty cell; inf or nan written out is not a position
+            raise ValueError(f"not finite: {cell}")
+        return value
 
     def rate(self, i):
         """Rate (Hz) if line i is a rate line (``100``, ``100,Hz``), else None."""
@@ -304,8 +307,8 @@ def _read_section(lines, i):
         except ValueError:
             bad = next(k for k, c in enumerate(cells[n_index:width], n_index)
                        if c and not _is_number(lines, c))
-            lines.fail(i, f"section '{name}': non-numeric value '{cells[bad]}' "
-                          f"in column {bad + 1} ({columns[bad - n_index]})")
+            lines.fail(i, f"section '{name}': value '{cells[bad]}' in column {bad + 1} "
+                          f"({columns[bad - n_index]}) is not a finite number (a gap is an empty cell)")
         i += 1
     section = ViconSection(
         name=name,

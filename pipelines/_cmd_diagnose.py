@@ -8,7 +8,7 @@ import time
 from dragline.compare.diagnose import candidate_list, diagnose_path, write_diagnosis_json, write_diagnosis_report
 
 from ._guard import guard_outputs, session_inputs
-from ._options import check_output_path, discretization_from_args, rig_from_args
+from ._options import check_output_path, discretization_from_args, number, rig_from_args
 
 
 def add_parser(sub):
@@ -31,8 +31,8 @@ def add_parser(sub):
                    help="discretization of every simulation (default baseline)")
     p.add_argument("--candidates", metavar="NAME,...",
                    help="mechanisms to try (default: every mechanism the simulator has)")
-    p.add_argument("--workers", type=int, default=2, metavar="N", help="simulation processes (default 2)")
-    p.add_argument("--seed", type=int, default=0, metavar="N", help="seeds the null test's surrogates (default 0)")
+    p.add_argument("--workers", type=number(integer=True), default=2, metavar="N", help="simulation processes (default 2)")
+    p.add_argument("--seed", type=number("nonnegative", integer=True), default=0, metavar="N", help="seeds the null test's surrogates (default 0)")
     p.add_argument("--json", required=True, metavar="DIAGNOSIS.json", help="diagnosis to write")
     p.add_argument("--report", metavar="REPORT.pdf", help="PDF report to write")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
@@ -51,7 +51,7 @@ def run(args):
         names = [n.strip() for n in args.candidates.split(",") if n.strip()]
         candidate_list(names)  # unknown names: exit 2 before any work
     rig = rig_from_args(args)
-    discretization = discretization_from_args(args)
+    discretization = discretization_from_args(args, rig)
     say = (lambda msg: None) if args.quiet else (lambda msg: print(f"dragline: {msg}", file=sys.stderr))
     t0 = time.perf_counter()
     result = diagnose_path(args.input, maneuver=args.maneuver, rig=rig, calibration=args.calibration,

@@ -9,6 +9,7 @@ from dragline.simulate import simulate, write_trajectory_csv
 
 from ._guard import guard_outputs
 from ._options import (
+    number,
     add_model_options,
     check_output_path,
     discretization_from_args,
@@ -22,9 +23,9 @@ def add_parser(sub):
     p = sub.add_parser("simulate", help="simulate a maneuver from static equilibrium",
                        description="Simulate a maneuver from static equilibrium and write the trajectory table (CSV).")
     add_model_options(p)
-    p.add_argument("--duration", type=float, default=10.0, metavar="S", help="simulated time (s, default 10)")
-    p.add_argument("--rate", type=float, default=200.0, metavar="HZ", help="output rate (Hz, default 200)")
-    p.add_argument("--dt", type=float, default=None, metavar="S", help="fixed integration step (s; default: RK4's stability limit, cut as the rig stiffens)")
+    p.add_argument("--duration", type=number(), default=10.0, metavar="S", help="simulated time (s, default 10)")
+    p.add_argument("--rate", type=number(), default=200.0, metavar="HZ", help="output rate (Hz, default 200)")
+    p.add_argument("--dt", type=number(), default=None, metavar="S", help="fixed integration step (s; default: RK4's stability limit, cut as the rig stiffens)")
     p.add_argument("--out", required=True, metavar="TRAJ.csv", help="trajectory table to write")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
 
@@ -34,7 +35,7 @@ def run(args):
     guard_outputs([args.rig, args.maneuver], files=[args.out])
     rig = rig_from_args(args)
     maneuver = maneuver_from_args(args)
-    discretization = discretization_from_args(args)
+    discretization = discretization_from_args(args, rig)
     physics = physics_from_args(args)
     if args.dt is not None and not args.dt > 0:
         raise ValueError("--dt must be positive")

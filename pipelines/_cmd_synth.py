@@ -20,6 +20,7 @@ from dragline.simulate import simulate
 
 from ._guard import guard_outputs
 from ._options import (
+    number,
     add_model_options,
     discretization_from_args,
     maneuver_from_args,
@@ -35,27 +36,27 @@ def add_parser(sub):
                     "(noise, occlusion, dropouts, ghosts, lens distortion) and write a session "
                     "directory; the truth goes only to --truth-out.")
     add_model_options(p)
-    p.add_argument("--seed", type=int, default=0, metavar="N",
+    p.add_argument("--seed", type=number("nonnegative", integer=True), default=0, metavar="N",
                    help="seeds the cameras' intrinsics, the wand path and every random stage (default 0)")
-    p.add_argument("--noise-px", type=float, default=DEFAULTS["noise_px"], metavar="SIGMA",
+    p.add_argument("--noise-px", type=number("nonnegative"), default=DEFAULTS["noise_px"], metavar="SIGMA",
                    help=f"centroid noise per axis (px, default {DEFAULTS['noise_px']})")
-    p.add_argument("--dropout", type=float, default=DEFAULTS["dropout"], metavar="P",
+    p.add_argument("--dropout", type=number("fraction"), default=DEFAULTS["dropout"], metavar="P",
                    help=f"fraction of detections lost at random (default {DEFAULTS['dropout']})")
-    p.add_argument("--ghost-rate", type=float, default=DEFAULTS["ghost_rate"], metavar="P",
+    p.add_argument("--ghost-rate", type=number("fraction"), default=DEFAULTS["ghost_rate"], metavar="P",
                    help=f"fraction of trial detections replaced by a wrong centroid (default {DEFAULTS['ghost_rate']})")
-    p.add_argument("--wand-ghost-rate", type=float, default=DEFAULTS["wand_ghost_rate"], metavar="P",
+    p.add_argument("--wand-ghost-rate", type=number("fraction"), default=DEFAULTS["wand_ghost_rate"], metavar="P",
                    help=f"the same in the wand take (default {DEFAULTS['wand_ghost_rate']})")
     p.add_argument("--no-occlusion", action="store_true", help="do not hide markers behind the rig's bodies")
-    p.add_argument("--distortion-scale", type=float, default=1.0, metavar="S",
+    p.add_argument("--distortion-scale", type=number("nonnegative"), default=1.0, metavar="S",
                    help="multiply the true lenses' distortion (0: ideal lenses; default 1)")
-    p.add_argument("--rate", type=float, default=200.0, metavar="HZ",
+    p.add_argument("--rate", type=number(), default=200.0, metavar="HZ",
                    help=f"trial frame rate (Hz, default 200, at most {MAX_RATE_HZ:g})")
-    p.add_argument("--duration", type=float, default=10.0, metavar="S", help="trial length (s, default 10)")
-    p.add_argument("--wand-frames", type=int, default=DEFAULTS["wand_frames"], metavar="N",
+    p.add_argument("--duration", type=number(), default=10.0, metavar="S", help="trial length (s, default 10)")
+    p.add_argument("--wand-frames", type=number(integer=True), default=DEFAULTS["wand_frames"], metavar="N",
                    help=f"frames of the wand take (default {DEFAULTS['wand_frames']}; 0: none)")
-    p.add_argument("--wand-rate", type=float, default=DEFAULTS["wand_rate_hz"], metavar="HZ",
+    p.add_argument("--wand-rate", type=number(), default=DEFAULTS["wand_rate_hz"], metavar="HZ",
                    help=f"frame rate of the calibration takes (Hz, default {DEFAULTS['wand_rate_hz']:g})")
-    p.add_argument("--lframe-frames", type=int, default=DEFAULTS["lframe_frames"], metavar="N",
+    p.add_argument("--lframe-frames", type=number(integer=True), default=DEFAULTS["lframe_frames"], metavar="N",
                    help=f"frames of the static L-frame take (default {DEFAULTS['lframe_frames']}; 0: none)")
     p.add_argument("--out", required=True, metavar="SESSION_DIR", help="session directory to create")
     p.add_argument("--truth-out", metavar="DIR",
@@ -91,7 +92,7 @@ def run(args):
     _check_args(args)
     rig = rig_from_args(args)
     maneuver = maneuver_from_args(args)
-    discretization = discretization_from_args(args)
+    discretization = discretization_from_args(args, rig)
     physics = physics_from_args(args)
     t0 = time.perf_counter()
     result = simulate(rig, maneuver, discretization, physics, duration=args.duration, rate_hz=args.rate)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+import math
 import os
 
 from dragline.simulate import (
@@ -11,6 +13,32 @@ from dragline.simulate import (
     parse_physics,
     read_maneuver_csv,
 )
+
+
+_RANGES = {
+    "positive": (lambda v: v > 0, "a positive"),
+    "nonnegative": (lambda v: v >= 0, "a non-negative"),
+    "fraction": (lambda v: 0 <= v <= 1, "a fraction (0 to 1) as a"),
+    "finite": (lambda v: True, "a"),
+}
+
+
+def number(kind="positive", integer=False):
+    """An argparse ``type``: a finite number in ``kind``'s range (argparse names the option in its error)."""
+    ok, words = _RANGES[kind]
+
+    def parse(text):
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            value = None
+        if value is None or not math.isfinite(value) or not ok(value):
+            raise argparse.ArgumentTypeError(f"expected {words} {'whole number' if integer else 'finite number'}, "
+                                             f"got {text!r}")
+        return value
+
+    parse.__name__ = "integer" if integer else "number"
+    return parse
 
 
 def add_model_options(parser, physics=True):
@@ -32,8 +60,18 @@ def maneuver_from_args(args):
     return dig_maneuver() if args.maneuver == "dig" else read_maneuver_csv(args.maneuver)
 
 
-def discretization_from_args(args):
-    text = args.discretization
+def discretization_from_args(args, rig=None):
+    """The --discretization option: a level name or per-rope counts (checked against ``rig`` when given)."""
+    try:
+        counts = _discretization(args.discretization)
+        if rig is not None:
+            rig.particle_counts(counts)
+    except ValueError as exc:
+        raise ValueError(f"--discretization: {exc}") from None
+    return counts
+
+
+def _discretization(text):
     if "=" not in text:
         if text not in DISCRETIZATION_LEVELS:
             raise ValueError(f"unknown discretization {text!r} (choose {', '.join(DISCRETIZATION_LEVELS)} or ROPE=N,...)")
@@ -49,7 +87,10 @@ def discretization_from_args(args):
 
 
 def physics_from_args(args):
-    return [parse_physics(spec) for spec in getattr(args, "physics", [])]
+    try:
+        return [parse_physics(spec) for spec in getattr(args, "physics", [])]
+    except ValueError as exc:
+        raise ValueError(f"--physics: {exc}") from None
 
 
 def check_output_path(path):

@@ -42,6 +42,8 @@ from ...capture._strict_json import json_ready
 from ...simulate import (
     ROPE_CHANNELS,
     Maneuver,
+    SimulationError,
+    StaticsError,
     dig_maneuver,
     load_rig,
     make_mechanism,
@@ -824,8 +826,26 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     if verdict in scored:
         note(f"fitting the other candidates on top of {verdict}")
         named = next(h for h in hypotheses if h["name"] == verdict)
-        second = second_round(problem, ctx, runnable, named, scored[verdict]["sim"], workers=workers, seed=seed,
-                              progress=note)
+        second_ctx, second_problem, base_sim = ctx, problem, scored[verdict]["sim"]
+        if verdict in joints:
+            # The named fit sits on the jointly refitted rig: the others are
+            # fitted on that rig too. Against the joint fit from the updated
+            # rig, each had to beat the parameters' shifts as well as the
+            # mechanism (at the low level a sheave's inertia under aero drag
+            # scored 0, though strong on its own). The linearised parameter
+            # freedom stays, its prior centred as the joint rig's shifts say.
+            joint = joints[verdict]
+            second_ctx = dict(ctx, rig=joint["rig"], maneuver=joint["maneuver"],
+                              initial_state=joint["initial_state"])
+            second_problem = problem.with_regressors(
+                problem.regressors, prior_precision=problem.prior_precision,
+                prior_mean=np.r_[-joint["coords"], np.zeros(len(error_directions))])
+            main = named["main_parameter"]
+            base_sim = joint["sim"]
+            named = dict(named, parameters=dict(named["parameters"],
+                                                **{main: float(joint["mechanism"].parameters[main])}))
+        second = second_round(second_problem, second_ctx, runnable, named, base_sim,
+                              workers=workers, seed=seed, progress=note)
         also = [h for h in second["candidates"] if h["significant"]]
         if also:
             h = also[0]
@@ -917,7 +937,14 @@ def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretizatio
     rig = load_rig() if rig is None else rig
     table, man, source = load_recording(path, maneuver, rig, calibration, progress)
     loaded = _time.perf_counter() - started
-    result = diagnose(table, man, rig, discretization, candidates, workers, seed, source, progress)
+    try:
+        result = diagnose(table, man, rig, discretization, candidates, workers, seed, source, progress)
+    except (StaticsError, SimulationError):
+        raise  # about the rig or the maneuver, not the recording
+    except ValueError as exc:
+        if str(path) in str(exc):
+            raise
+        raise ValueError(f"{path}: {exc}") from None  # the checks of diagnose() are about the recording
     result.doc["timing"]["load_seconds"] = loaded
     result.doc["timing"]["total_seconds"] = _time.perf_counter() - started
     return result
