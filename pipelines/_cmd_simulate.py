@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
-from dragline.simulate import simulate, write_trajectory_csv
+from dragline.simulate import StaticsError, simulate, write_trajectory_csv
 
 from ._guard import guard_outputs
 from ._options import (
@@ -44,8 +44,15 @@ def run(args):
         result = simulate(rig, maneuver, discretization, physics, duration=args.duration, rate_hz=args.rate,
                           dt=args.dt)
     except ValueError as exc:
-        if args.maneuver and str(exc).startswith("the maneuver"):
+        text = str(exc)
+        if args.maneuver and text.startswith("the maneuver"):
             raise ValueError(f"{args.maneuver}: {exc}") from None
+        if args.dt is not None and "step needs" in text:
+            raise ValueError(f"--dt {args.dt:g}: {exc}") from None
+        if "records of" in text:
+            raise ValueError(f"--duration {args.duration:g} at --rate {args.rate:g}: {exc}") from None
+        if isinstance(exc, StaticsError) and args.rig:
+            raise ValueError(f"{args.rig} (with maneuver {args.maneuver}): {exc}") from None
         raise
     write_trajectory_csv(args.out, result.table)
     if not args.quiet:

@@ -52,11 +52,11 @@ def add_parser(sub):
     p.add_argument("--rate", type=number(), default=200.0, metavar="HZ",
                    help=f"trial frame rate (Hz, default 200, at most {MAX_RATE_HZ:g})")
     p.add_argument("--duration", type=number(), default=10.0, metavar="S", help="trial length (s, default 10)")
-    p.add_argument("--wand-frames", type=number(integer=True), default=DEFAULTS["wand_frames"], metavar="N",
+    p.add_argument("--wand-frames", type=number("nonnegative", integer=True), default=DEFAULTS["wand_frames"], metavar="N",
                    help=f"frames of the wand take (default {DEFAULTS['wand_frames']}; 0: none)")
     p.add_argument("--wand-rate", type=number(), default=DEFAULTS["wand_rate_hz"], metavar="HZ",
                    help=f"frame rate of the calibration takes (Hz, default {DEFAULTS['wand_rate_hz']:g})")
-    p.add_argument("--lframe-frames", type=number(integer=True), default=DEFAULTS["lframe_frames"], metavar="N",
+    p.add_argument("--lframe-frames", type=number("nonnegative", integer=True), default=DEFAULTS["lframe_frames"], metavar="N",
                    help=f"frames of the static L-frame take (default {DEFAULTS['lframe_frames']}; 0: none)")
     p.add_argument("--out", required=True, metavar="SESSION_DIR", help="session directory to create")
     p.add_argument("--truth-out", metavar="DIR",

@@ -205,6 +205,8 @@ def parse_physics(spec):
         key = key.strip()
         if not eq:
             raise ValueError(f"mechanism {name}: expected PARAM=VALUE, got {item!r}")
+        if key in given:
+            raise ValueError(f"mechanism {name}: {key} given twice")
         if key in defaults and not isinstance(defaults[key], str):
             try:
                 value = float(value)

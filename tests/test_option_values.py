@@ -17,7 +17,7 @@ CASES = [
     (["simulate", "--out", OUT, "--dt"], ["0", "-1e-4", "inf"]),
     (["synth", "--out", "never-written", "--dropout"], ["1.5", "-0.1", "nan"]),
     (["synth", "--out", "never-written", "--noise-px"], ["-1", "inf"]),
-    (["synth", "--out", "never-written", "--wand-frames"], ["0", "2.5", "-3"]),
+    (["synth", "--out", "never-written", "--wand-frames"], ["2.5", "-3"]),  # 0: a session without a wand take
     (["reconstruct", "session", "--out", OUT, "--max-gap"], ["-1", "1.5", "nan"]),
     (["reconstruct", "session", "--out", OUT, "--outlier-mm"], ["0", "-20", "inf"]),
     (["calibrate", "session", "--out", "c.json", "--max-frames"], ["0", "nan"]),
@@ -56,10 +56,26 @@ def test_a_good_number_is_taken(tmp_path, capsys):
     ("--discretization", "ultra", "unknown discretization"),
     ("--physics", "magic", "unknown mechanism"),
     ("--physics", "aero_drag:cd=-1", "cd"),
+    ("--physics", "aero_drag:cd=1,cd=2", "cd given twice"),
 ])
 def test_a_bad_model_option_names_the_option(option, value, words, tmp_path, capsys):
     out = tmp_path / "t.csv"
     assert main(["simulate", option, value, "--out", str(out), "--duration", "0.05", "--quiet"]) == 2
     line = _one_error(capsys)
     assert line.startswith(f"dragline: error: {option}:") and words in line, line
+    assert not out.exists()
+
+
+def test_a_rig_too_stiff_to_relax_is_refused_at_once(tmp_path, capsys):
+    """A dump rope 3e5 times too stiff: the statics would take 1.5e8 steps (a fuzzed rig ran past 30 s)."""
+    from importlib import resources
+
+    text = resources.files("dragline.simulate").joinpath("data/rig.toml").read_text()
+    assert "static_stiffness = 3513.0" in text  # the dump rope's
+    rig = tmp_path / "stiff.toml"
+    rig.write_text(text.replace("static_stiffness = 3513.0", "static_stiffness = 1e9"))
+    out = tmp_path / "t.csv"
+    assert main(["simulate", "--rig", str(rig), "--out", str(out), "--duration", "0.05", "--quiet"]) == 2
+    line = _one_error(capsys)
+    assert str(rig) in line and "steps, more than" in line, line
     assert not out.exists()

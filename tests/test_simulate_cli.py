@@ -80,13 +80,13 @@ def test_bad_maneuver_tables_exit_2_with_one_line(tmp_path, capsys, rows, messag
         (["--physics", "aero_drag:speed=3"], "unknown parameter"),
         (["--maneuver", "/nonexistent/m.csv"], "does not exist"),
         (["--rig", "/nonexistent/rig.toml"], "cannot read rig"),
-        (["--duration", "-1"], "duration must be positive"),
+        (["--duration=-1"], "argument --duration: expected a positive finite number, got '-1'"),
         # Work sized from the input is refused with the figure it would need
         # (these ran for hours or until the kernel killed them).
-        (["--dt", "1e-12"], "needs 1e+13 steps"),
-        (["--dt", "nan"], "--dt must be positive"),
-        (["--rate", "1e9"], "2.61e+04 GiB"),
-        (["--duration", "inf"], "must be finite"),
+        (["--dt", "1e-12"], "--dt 1e-12: a 10 s simulation at a 1e-12 s step needs 1e+13 steps"),
+        (["--dt", "nan"], "argument --dt: expected a positive finite number, got 'nan'"),
+        (["--rate", "1e9"], "--duration 10 at --rate 1e+09: 10000000000 records"),
+        (["--duration", "inf"], "argument --duration: expected a positive finite number, got 'inf'"),
     ],
 )
 def test_bad_options_exit_2_with_one_line(tmp_path, capsys, args, message):

@@ -471,7 +471,8 @@ def classify(case, status, timed_out, work):
         if case["input"] not in errors[0]:
             return "unnamed", errors[0]
         return "refused", ""
-    for path in list((work / "out").rglob("*.json")) + ([work / "stdout"] if "--json" in case["argv"] else []):
+    prints_json = command in ("inspect", "calibrate", "run", "replay") and "--json" in case["argv"]
+    for path in list((work / "out").rglob("*.json")) + ([work / "stdout"] if prints_json else []):
         try:
             _strict(path.read_text())
         except ValueError as exc:
