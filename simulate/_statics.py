@@ -25,8 +25,9 @@ from ._time_step import stable_time_step
 
 __all__ = ["Equilibrium", "StaticsError", "solve_statics"]
 
-# The relaxation's budget: ten times what the baseline rig needs at most
-# (60 s at its 0.12 ms step), about a minute of computing.
+# The relaxation's budget: ten times what the baseline rig may need (60 s
+# at its 0.11 ms step; the high level's 62 us step needs 1e6), about a
+# minute of computing.
 MAX_RELAX_STEPS = 5e6
 
 
@@ -141,7 +142,8 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
         raise StaticsError(f"no static equilibrium sought at the rope lengths of t = {t:g} s: the stiffest rope or "
                            f"chain element there needs a {dt:.2g} s step, so relaxing could take "
                            f"{chunk * np.ceil(max_relax_time):.2g} steps, more than the {MAX_RELAX_STEPS:.0e} "
-                           "allowed (an element near zero length, or a stiffness or mass far from what a rig has?)")
+                           "allowed (an element near zero length, a discretization far finer than 'high', or a "
+                           "stiffness or mass far from what a rig has?)")
     speed_index = np.r_[[12 * b + k for b in range(model.n_bodies) for k in (3, 4, 5)], np.arange(model.o_vel, model.o_force)].astype(int)
     for _ in range(int(np.ceil(max_relax_time))):
         rec, status, _, _ = _kernel.integrate(y, 0.0, dt, chunk, chunk, m, work, 1e3)

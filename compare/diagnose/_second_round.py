@@ -18,7 +18,7 @@ from ._hypotheses import fit_candidates, null_threshold, score_candidate
 __all__ = ["second_round"]
 
 
-def second_round(problem, ctx, candidates, named, base_sim, workers=2, seed=0, progress=None):
+def second_round(problem, ctx, candidates, named, base_sim, workers=2, seed=0, progress=None, allowance=0.0):
     """Fit each other candidate on top of the named mechanism.
 
     Parameters
@@ -35,12 +35,16 @@ def second_round(problem, ctx, candidates, named, base_sim, workers=2, seed=0, p
     workers, seed : int
         Processes; the null test's seed.
     progress : callable, optional
+    allowance : float
+        The least improvement (chi2) that counts whatever the null test
+        says: the share of the named model's own excess over noise a second
+        mechanism must explain (``diagnose``).
 
     Returns
     -------
     dict
         ``given`` (the named mechanism and its parameters), ``threshold``
-        (chi2), ``candidates`` (best first: ``name``, ``parameters``,
+        (chi2: the larger of ``noise_threshold`` and ``allowance``), ``candidates`` (best first: ``name``, ``parameters``,
         ``improvement``, ``score``, ``significant``), ``n_simulations``.
     """
     main = named["main_parameter"]
@@ -49,7 +53,8 @@ def second_round(problem, ctx, candidates, named, base_sim, workers=2, seed=0, p
     others = [c for c in candidates if c["name"] != named["name"]]
     given = {"name": named["name"], "parameters": {main: value}}
     if not others:
-        return {"given": given, "threshold": None, "candidates": [], "n_simulations": 0}
+        return {"given": given, "threshold": None, "noise_threshold": None, "allowance": allowance, "candidates": [],
+                "n_simulations": 0}
     points = fit_candidates(problem, dict(ctx, base_physics=base), others, base_sim, workers=workers,
                             progress=progress)
     scored = {c["name"]: score_candidate(problem, c, points[c["name"]]) for c in others}
@@ -57,7 +62,8 @@ def second_round(problem, ctx, candidates, named, base_sim, workers=2, seed=0, p
     best_sim = best["sim"] if best["value"] > 0 else base_sim
     residual = problem.residual(best_sim, problem.evaluate(best_sim)["nuisance"])
     signatures = [s["signature_sim"] - base_sim for s in scored.values() if s["signature_sim"] is not None]
-    threshold, _ = null_threshold(problem, residual, signatures, seed=seed + 1)
+    noise_threshold, _ = null_threshold(problem, residual, signatures, seed=seed + 1)
+    threshold = max(noise_threshold, allowance)
     found = []
     for c in others:
         s = scored[c["name"]]
@@ -70,5 +76,6 @@ def second_round(problem, ctx, candidates, named, base_sim, workers=2, seed=0, p
             "at_bound": s["at_bound"],
         })
     found.sort(key=lambda h: -h["improvement"])
-    return {"given": given, "threshold": threshold, "candidates": found,
+    return {"given": given, "threshold": threshold, "noise_threshold": noise_threshold, "allowance": allowance,
+            "candidates": found,
             "n_simulations": sum(s["n_simulations"] for s in scored.values())}
