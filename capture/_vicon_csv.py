@@ -50,6 +50,8 @@ _KNOWN_SECTIONS = {"trajectories", "devices", "model outputs", "joints", "segmen
 _HEADER_FIRST = {"frame", "field #", "field#", "field"}
 _SUB_FRAME = {"sub frame", "subframe", "sub-frame"}
 _METRES_PER_UNIT = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
+# The largest frame or sub-frame number taken: a day at 10 kHz is 8.6e8.
+MAX_FRAME = 10**9
 
 
 @dataclass(eq=False)
@@ -339,6 +341,8 @@ def _index_cell(lines, i, cell, what):
         value = math.nan
     if not (math.isfinite(value) and value == int(value)):
         lines.fail(i, f"{what} '{cell}' is not an integer")
+    if not 0 <= value <= MAX_FRAME:  # a day at 10 kHz; beyond, an int64 index overflows
+        lines.fail(i, f"{what} '{cell}' is outside 0 to {MAX_FRAME:.0e}")
     return int(value)
 
 

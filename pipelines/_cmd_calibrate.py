@@ -21,7 +21,7 @@ def add_parser(sub):
                                    "reprojection RMS per camera (px), wand length mean and spread (mm).")
     p.add_argument("session", metavar="SESSION_DIR|capture.mcap", help="session directory or its MCAP file")
     p.add_argument("--out", required=True, metavar="cameras.json", help="calibration to write")
-    p.add_argument("--max-frames", type=number(integer=True), default=2000, metavar="N",
+    p.add_argument("--max-frames", type=number(integer=True, maximum=1_000_000), default=2000, metavar="N",
                    help="most wand frames in the bundle adjustment (evenly spread; default 2000)")
     p.add_argument("--json", action="store_true", help="print the quality summary as JSON")
 

@@ -29,9 +29,9 @@ def add_parser(sub):
     p.add_argument("--time-offset", default="auto", metavar="auto|S",
                    help="measured clock minus simulation clock (s); 'auto' estimates it from the rope "
                    "lengths (default); a number is applied as given, the estimate is still reported")
-    p.add_argument("--max-offset", type=number("nonnegative"), default=None, metavar="S",
+    p.add_argument("--max-offset", type=number("nonnegative", maximum=600), default=None, metavar="S",
                    help="largest |offset| searched (s; default 3, at most a quarter of the record)")
-    p.add_argument("--free-decay-start", type=number("finite"), default=None, metavar="S",
+    p.add_argument("--free-decay-start", type=number("finite", maximum=1e6), default=None, metavar="S",
                    help="start of the free decay (s, simulation clock; default: when the reels stop)")
     p.add_argument("--discretization-study", action="store_true",
                    help="also simulate the maneuver at the four discretization levels (Fig. 21; ~30 s)")

@@ -36,9 +36,9 @@ def add_parser(sub):
                     "(noise, occlusion, dropouts, ghosts, lens distortion) and write a session "
                     "directory; the truth goes only to --truth-out.")
     add_model_options(p)
-    p.add_argument("--seed", type=number("nonnegative", integer=True), default=0, metavar="N",
+    p.add_argument("--seed", type=number("nonnegative", integer=True, maximum=2**32 - 1), default=0, metavar="N",
                    help="seeds the cameras' intrinsics, the wand path and every random stage (default 0)")
-    p.add_argument("--noise-px", type=number("nonnegative"), default=DEFAULTS["noise_px"], metavar="SIGMA",
+    p.add_argument("--noise-px", type=number("nonnegative", maximum=1e3), default=DEFAULTS["noise_px"], metavar="SIGMA",
                    help=f"centroid noise per axis (px, default {DEFAULTS['noise_px']})")
     p.add_argument("--dropout", type=number("fraction"), default=DEFAULTS["dropout"], metavar="P",
                    help=f"fraction of detections lost at random (default {DEFAULTS['dropout']})")
@@ -47,16 +47,16 @@ def add_parser(sub):
     p.add_argument("--wand-ghost-rate", type=number("fraction"), default=DEFAULTS["wand_ghost_rate"], metavar="P",
                    help=f"the same in the wand take (default {DEFAULTS['wand_ghost_rate']})")
     p.add_argument("--no-occlusion", action="store_true", help="do not hide markers behind the rig's bodies")
-    p.add_argument("--distortion-scale", type=number("nonnegative"), default=1.0, metavar="S",
+    p.add_argument("--distortion-scale", type=number("nonnegative", maximum=100), default=1.0, metavar="S",
                    help="multiply the true lenses' distortion (0: ideal lenses; default 1)")
     p.add_argument("--rate", type=number(), default=200.0, metavar="HZ",
                    help=f"trial frame rate (Hz, default 200, at most {MAX_RATE_HZ:g})")
     p.add_argument("--duration", type=number(), default=10.0, metavar="S", help="trial length (s, default 10)")
-    p.add_argument("--wand-frames", type=number("nonnegative", integer=True), default=DEFAULTS["wand_frames"], metavar="N",
+    p.add_argument("--wand-frames", type=number("nonnegative", integer=True, maximum=100_000), default=DEFAULTS["wand_frames"], metavar="N",
                    help=f"frames of the wand take (default {DEFAULTS['wand_frames']}; 0: none)")
-    p.add_argument("--wand-rate", type=number(), default=DEFAULTS["wand_rate_hz"], metavar="HZ",
+    p.add_argument("--wand-rate", type=number(maximum=1e4), default=DEFAULTS["wand_rate_hz"], metavar="HZ",
                    help=f"frame rate of the calibration takes (Hz, default {DEFAULTS['wand_rate_hz']:g})")
-    p.add_argument("--lframe-frames", type=number("nonnegative", integer=True), default=DEFAULTS["lframe_frames"], metavar="N",
+    p.add_argument("--lframe-frames", type=number("nonnegative", integer=True, maximum=100_000), default=DEFAULTS["lframe_frames"], metavar="N",
                    help=f"frames of the static L-frame take (default {DEFAULTS['lframe_frames']}; 0: none)")
     p.add_argument("--out", required=True, metavar="SESSION_DIR", help="session directory to create")
     p.add_argument("--truth-out", metavar="DIR",

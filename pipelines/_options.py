@@ -23,8 +23,8 @@ _RANGES = {
 }
 
 
-def number(kind="positive", integer=False):
-    """An argparse ``type``: a finite number in ``kind``'s range (argparse names the option in its error)."""
+def number(kind="positive", integer=False, maximum=None):
+    """An argparse ``type``: a finite number in ``kind``'s range, at most ``maximum`` (argparse names the option)."""
     ok, words = _RANGES[kind]
 
     def parse(text):
@@ -35,6 +35,8 @@ def number(kind="positive", integer=False):
         if value is None or not math.isfinite(value) or not ok(value):
             raise argparse.ArgumentTypeError(f"expected {words} {'whole number' if integer else 'finite number'}, "
                                              f"got {text!r}")
+        if maximum is not None and abs(value) > maximum:
+            raise argparse.ArgumentTypeError(f"expected at most {maximum:g}, got {text!r}")
         return value
 
     parse.__name__ = "integer" if integer else "number"

@@ -20,8 +20,9 @@ CASES = [
     (["synth", "--out", "never-written", "--wand-frames"], ["2.5", "-3"]),  # 0: a session without a wand take
     (["reconstruct", "session", "--out", OUT, "--max-gap"], ["-1", "1.5", "nan"]),
     (["reconstruct", "session", "--out", OUT, "--outlier-mm"], ["0", "-20", "inf"]),
+    (["reconstruct", "session", "--out", OUT, "--max-reprojection-px"], ["0", "1e300"]),  # squared: overflow
     (["calibrate", "session", "--out", "c.json", "--max-frames"], ["0", "nan"]),
-    (["compare", "a.csv", "b.csv", "--max-offset"], ["-1", "nan"]),
+    (["compare", "a.csv", "b.csv", "--max-offset"], ["-1", "nan", "1e9"]),  # 1e9: a 1.5 TiB search grid
     (["diagnose", "a.csv", "--workers"], ["0", "1.5"]),
     (["run", "--seed"], ["-1", "x"]),
 ]

@@ -8,6 +8,7 @@ Trajectories section rewritten the way other VICON software writes it.
 import json
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -384,6 +385,20 @@ def test_trajectory_names_that_do_not_make_markers(tmp_path, names_line, match):
     export = read_vicon_csv(write_text(tmp_path, lines))
     with pytest.raises(ValueError, match=match):
         marker_trajectories(export)
+
+
+@pytest.mark.parametrize("row, match", [
+    ("2,1e300,209.475,1219.82,1780.88,,,,227.702,1091.8,496.729,,,", "sub frame '1e300' is outside"),
+    ("-2,0,209.475,1219.82,1780.88,,,,227.702,1091.8,496.729,,,", "frame '-2' is outside"),
+    ("2,0,209.475,inf,1780.88,,,,227.702,1091.8,496.729,,,", "'inf' in column 4 .* not a finite number"),
+    ("2,0,209.475,nan,1780.88,,,,227.702,1091.8,496.729,,,", "'nan' in column 4 .* not a finite number"),
+])
+def test_cells_a_fuzzer_broke_are_refused_with_their_line(tmp_path, row, match):
+    """A sub frame of 1e300 overflowed the int64 index (a traceback); 'inf' was taken as a position."""
+    lines = list(REAL_TRAJ_LINES)
+    lines[FIRST_DATA_LINE + 1] = row
+    message = read_error(write_text(tmp_path, lines))
+    assert f"line {FIRST_DATA_LINE + 2}:" in message and re.search(match, message), message
 
 
 def test_missing_file_is_a_value_error(tmp_path):
