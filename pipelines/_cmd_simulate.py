@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
-from dragline.simulate import StaticsError, simulate, write_trajectory_csv
+from dragline.simulate import SimulationError, StaticsError, simulate, write_trajectory_csv
 
 from ._guard import guard_outputs
 from ._options import (
@@ -43,6 +43,13 @@ def run(args):
     try:
         result = simulate(rig, maneuver, discretization, physics, duration=args.duration, rate_hz=args.rate,
                           dt=args.dt)
+    except SimulationError as exc:
+        if args.dt is None:
+            raise  # the tool's own step blew up: a fault of the tool (exit 1)
+        # The user's fixed step: an explicit step above the stability limit
+        # grows without bound (a fuzzed --dt 1e300 became 0.02 s and blew up).
+        raise ValueError(f"--dt {args.dt:g}: {exc}; a fixed step must stay below RK4's stability limit "
+                         "(leave --dt out and the step follows it)") from None
     except ValueError as exc:
         text = str(exc)
         if args.maneuver and text.startswith("the maneuver"):
