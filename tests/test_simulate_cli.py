@@ -132,9 +132,10 @@ def test_blow_up_names_time_and_place_and_writes_nothing(rig, tmp_path, capsys):
     with pytest.raises(SimulationError, match=r"blew up at t = [0-9.]+ s: .* in (body|rope segment|ring)"):
         simulate(rig, duration=1.0, dt=2e-3)  # far beyond RK4's stability limit
     out = tmp_path / "t.csv"
-    assert main(["simulate", "--dt", "0.002", "--duration", "1", "--out", str(out)]) == 1
+    # The step was the user's (--dt): bad input, exit 2, the option named.
+    assert main(["simulate", "--dt", "0.002", "--duration", "1", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "blew up" in err[0]
+    assert len(err) == 1 and err[0].startswith("dragline: error: --dt 0.002:") and "blew up" in err[0], err
     assert not out.exists() and not list(tmp_path.iterdir())
 
 
