@@ -552,16 +552,18 @@ def read_session(path):
     if info is None:
         raise ValueError(f"{path}: no session info ({INFO_TOPIC} missing or lost)")
     arrays, report = _assemble(path, info, frames, scan)
-    maneuver = {k: np.array(v, dtype=float) for k, v in info["maneuver"].items()}
-    lpts = info["lframe_points"]
+    # The schema's optional fields may be absent (a fuzzed session without
+    # wand_rate_hz was a KeyError): read with its defaults.
+    maneuver = {k: np.array(v, dtype=float) for k, v in info.get("maneuver", {}).items()}
+    lpts = info.get("lframe_points")
     session = CaptureSession(
         rate_hz=info["rate_hz"], camera_names=list(info["camera_names"]),
         image_size=tuple(info["image_size"]), nominal_focal_px=info["nominal_focal_px"],
         marker_names=list(info["marker_names"]), trial=arrays["trial"],
-        wand=arrays["wand"], wand_rate_hz=info["wand_rate_hz"],
-        wand_length=info["wand_length"], lframe=arrays["lframe"],
+        wand=arrays["wand"], wand_rate_hz=info.get("wand_rate_hz"),
+        wand_length=info.get("wand_length"), lframe=arrays["lframe"],
         lframe_points=None if lpts is None else np.array(lpts, float),
-        maneuver=maneuver, metadata=info["metadata"])
+        maneuver=maneuver, metadata=info.get("metadata", {}))
     return session, report
 
 
@@ -610,10 +612,10 @@ def summarize_mcap(path):
         out["session"] = {
             "cameras": info["camera_names"], "markers": info["marker_names"],
             "image_size": info["image_size"], "nominal_focal_px": info["nominal_focal_px"],
-            "rate_hz": info["rate_hz"], "wand_rate_hz": info["wand_rate_hz"],
-            "wand_length": info["wand_length"], "frames": report["frames"],
+            "rate_hz": info["rate_hz"], "wand_rate_hz": info.get("wand_rate_hz"),
+            "wand_length": info.get("wand_length"), "frames": report["frames"],
             "frames_expected": report["frames_expected"], "unseen_fraction": unseen,
             "missing_takes": report["missing_takes"], "notes": report["notes"],
-            "maneuver_columns": sorted(info["maneuver"]),
-            "maneuver_samples": len(next(iter(info["maneuver"].values()), []))}
+            "maneuver_columns": sorted(info.get("maneuver", {})),
+            "maneuver_samples": len(next(iter(info.get("maneuver", {}).values()), []))}
     return out

@@ -90,6 +90,16 @@ def test_an_unedited_copy_reads_as_the_original(tmp_path):
     assert a.rate_hz == b.rate_hz and a.marker_names == b.marker_names and a.trial.shape == b.trial.shape
 
 
+@pytest.mark.parametrize("key", ["wand_rate_hz", "maneuver", "metadata"])
+def test_an_optional_field_left_out_takes_its_default(tmp_path, key):
+    """The schema lets these go; the reader indexed them (a fuzzed session without wand_rate_hz: KeyError)."""
+    copy = rewrite_info(SAMPLE, tmp_path / "capture.mcap", _drop(key))
+    session, _ = read_session(copy)
+    assert session.trial.shape == read_session(SAMPLE)[0].trial.shape
+    assert main(["inspect", "--json", str(copy)]) == 0
+    assert main(["calibrate", str(copy), "--out", str(tmp_path / "cameras.json")]) == 0
+
+
 def test_a_frame_number_typo_exits_2_without_sizing_an_array_from_it(tmp_path, capsys):
     # The last trial frame numbered 3000000 instead of its own: reconstruct once grew to 24 GB.
     last = {}
