@@ -19,7 +19,7 @@ space limit. What comes out is sorted into:
 - ``memory``: MemoryError, or killed by the kernel;
 - ``hang``: still running at the limit, for a command whose valid run is
   bounded (``inspect``, ``simulate`` of 0.2 s, ``calibrate``,
-  ``reconstruct``, ``compare``); ``run``, ``synth`` and ``diagnose``,
+  ``reconstruct``, ``compare``); ``run``, ``replay``, ``synth`` and ``diagnose``,
   whose valid runs take minutes, are stopped after ``DOOR_S`` and counted
   ``running`` (the input passed the checks at the door) or, for a known
   nonsense input, ``accepted_nonsense``.
@@ -373,7 +373,8 @@ def make_case(k, rng, seed, work):
 def _capture_argv(rng, path, out):
     return rng.choice([["inspect", "--json", str(path)], ["calibrate", str(path), "--out", str(out / "c.json")],
                        ["reconstruct", str(path), "--calibration", str(path.parent.parent / "seed" / "cameras.json"),
-                        "--out", str(out / "m.csv"), "--quiet"]])
+                        "--out", str(out / "m.csv"), "--quiet"],
+                       ["replay", str(path), "--out", str(out / "replay"), "--no-study", "--no-diagnose", "--quiet"]])
 
 
 def _toml(doc):
