@@ -102,7 +102,8 @@ class RigFile(_Strict):
     """A whole rig."""
 
     name: Optional[str] = Field(None, description="shown in reports")
-    g: float = Field(9.81, ge=0, le=100, allow_inf_nan=False, description="gravity (m/s^2)")
+    g: float = Field(9.81, gt=0, le=100, allow_inf_nan=False,
+                     description="gravity (m/s^2); > 0: weights per length become masses through it")
     bodies: dict[str, Body] = Field(default_factory=dict, description="rigid bodies by name")
     fixed_points: dict[str, _Vec3] = Field(default_factory=dict, description="points fixed in the lab (m)")
     ropes: dict[str, Rope] = Field(min_length=1, description="rope and chain segments by name")
