@@ -137,13 +137,14 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     work = _kernel.make_work(m)
     y = initial_state(model, t) if y0 is None else np.array(y0, float)
     dt = stable_time_step(model, state=y, t=t)
-    chunk = int(np.ceil(1.0 / dt))
-    if chunk * np.ceil(max_relax_time) > MAX_RELAX_STEPS:
+    steps = np.ceil(max_relax_time) / dt if dt > 0 else np.inf  # a float first: 1 / dt may overflow
+    if not steps <= MAX_RELAX_STEPS:
         raise StaticsError(f"no static equilibrium sought at the rope lengths of t = {t:g} s: the stiffest rope or "
                            f"chain element there needs a {dt:.2g} s step, so relaxing could take "
-                           f"{chunk * np.ceil(max_relax_time):.2g} steps, more than the {MAX_RELAX_STEPS:.0e} "
+                           f"{steps:.2g} steps, more than the {MAX_RELAX_STEPS:.0e} "
                            "allowed (an element near zero length, a discretization far finer than 'high', or a "
                            "stiffness or mass far from what a rig has?)")
+    chunk = int(np.ceil(1.0 / dt))
     speed_index = np.r_[[12 * b + k for b in range(model.n_bodies) for k in (3, 4, 5)], np.arange(model.o_vel, model.o_force)].astype(int)
     for _ in range(int(np.ceil(max_relax_time))):
         rec, status, _, _ = _kernel.integrate(y, 0.0, dt, chunk, chunk, m, work, 1e3)

@@ -67,14 +67,18 @@ def test_a_bad_model_option_names_the_option(option, value, words, tmp_path, cap
     assert not out.exists()
 
 
-def test_a_rig_too_stiff_to_relax_is_refused_at_once(tmp_path, capsys):
-    """A dump rope 3e5 times too stiff: the statics would take 1.5e8 steps (a fuzzed rig ran past 30 s)."""
+@pytest.mark.parametrize("old, new", [
+    ("static_stiffness = 3513.0", "static_stiffness = 1e9"),  # the dump rope: 1.5e8 steps, ran past 30 s
+    ("weight_per_length = 0.55781", "weight_per_length = 1e-300"),  # a chain: a zero step, 1 / dt overflowed
+])
+def test_a_rig_too_stiff_to_relax_is_refused_at_once(tmp_path, capsys, old, new):
+    """Fuzzed rigs whose statics would need more steps than allowed: refused before any is taken."""
     from importlib import resources
 
     text = resources.files("dragline.simulate").joinpath("data/rig.toml").read_text()
-    assert "static_stiffness = 3513.0" in text  # the dump rope's
+    assert old in text
     rig = tmp_path / "stiff.toml"
-    rig.write_text(text.replace("static_stiffness = 3513.0", "static_stiffness = 1e9"))
+    rig.write_text(text.replace(old, new, 1))
     out = tmp_path / "t.csv"
     assert main(["simulate", "--rig", str(rig), "--out", str(out), "--duration", "0.05", "--quiet"]) == 2
     line = _one_error(capsys)
