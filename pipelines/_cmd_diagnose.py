@@ -31,8 +31,10 @@ def add_parser(sub):
                    help="discretization of every simulation (default baseline)")
     p.add_argument("--candidates", metavar="NAME,...",
                    help="mechanisms to try (default: every mechanism the simulator has)")
-    p.add_argument("--workers", type=number(integer=True, maximum=256), default=2, metavar="N", help="simulation processes (default 2)")
-    p.add_argument("--seed", type=number("nonnegative", integer=True, maximum=2**32 - 1), default=0, metavar="N", help="seeds the null test's surrogates (default 0)")
+    p.add_argument("--workers", type=number(integer=True, maximum=256), default=2, metavar="N",
+                   help="simulation processes (default 2)")
+    p.add_argument("--seed", type=number("nonnegative", integer=True, maximum=2**32 - 1), default=0, metavar="N",
+                   help="seeds the null test's surrogates (default 0)")
     p.add_argument("--json", required=True, metavar="DIAGNOSIS.json", help="diagnosis to write")
     p.add_argument("--report", metavar="REPORT.pdf", help="PDF report to write")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")

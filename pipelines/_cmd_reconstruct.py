@@ -45,9 +45,10 @@ def add_parser(sub):
     p.add_argument("--smoothing", choices=SMOOTHINGS, default="running_average",
                    help="smoother for velocities and body rates (default: the paper's 12-sample "
                         "running average, centred on i-5...i+6)")
-    p.add_argument("--max-gap", type=number("nonnegative", integer=True, maximum=1_000_000), default=10, metavar="FRAMES",
+    p.add_argument("--max-gap", type=number("nonnegative", integer=True, maximum=1_000_000), default=10,
+                   metavar="FRAMES",
                    help="longest marker gap filled by spline (frames, default 10); longer gaps stay NaN")
-    p.add_argument("--outlier-mm", type=number(maximum=1e6), default=20.0, metavar="MM",
+    p.add_argument("--outlier-mm", type=number("nonnegative", maximum=1e6), default=20.0, metavar="MM",
                    help="a marker farther than this from the median of its +-3 frames is dropped as an "
                         "outlier before gap filling (default 20; 0 keeps every sample)")
     p.add_argument("--max-reprojection-px", type=number(maximum=1e4), default=3.0, metavar="PX",

@@ -16,7 +16,8 @@ def add_parser(sub):
     p.add_argument("--out", default="dragline-out", metavar="OUT_DIR", help="output directory (default ./dragline-out)")
     p.add_argument("--maneuver", metavar="dig|FILE.csv", help="reel table (default: the session's own)")
     p.add_argument("--config", metavar="FILE.toml", help="stage options (see the README's Configuration)")
-    p.add_argument("--seed", type=number("nonnegative", integer=True, maximum=2**32 - 1), default=None, help="seed of the built-in session (default 0)")
+    p.add_argument("--seed", type=number("nonnegative", integer=True, maximum=2**32 - 1), default=None,
+                   help="seed of the built-in session (default 0)")
     p.add_argument("--no-study", action="store_true", help="skip the discretization study (Fig. 21)")
     p.add_argument("--no-diagnose", action="store_true", help="skip the missing-physics diagnosis")
     p.add_argument("--verbose", action="store_true", help="print each stage's time as it ends")

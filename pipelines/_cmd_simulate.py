@@ -9,11 +9,11 @@ from dragline.simulate import SimulationError, StaticsError, simulate, write_tra
 
 from ._guard import guard_outputs
 from ._options import (
-    number,
     add_model_options,
     check_output_path,
     discretization_from_args,
     maneuver_from_args,
+    number,
     physics_from_args,
     rig_from_args,
 )
@@ -37,8 +37,6 @@ def run(args):
     maneuver = maneuver_from_args(args)
     discretization = discretization_from_args(args, rig)
     physics = physics_from_args(args)
-    if args.dt is not None and not args.dt > 0:
-        raise ValueError("--dt must be positive")
     t0 = time.perf_counter()
     try:
         result = simulate(rig, maneuver, discretization, physics, duration=args.duration, rate_hz=args.rate,

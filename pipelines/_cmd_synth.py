@@ -20,10 +20,10 @@ from dragline.simulate import simulate
 
 from ._guard import guard_outputs
 from ._options import (
-    number,
     add_model_options,
     discretization_from_args,
     maneuver_from_args,
+    number,
     physics_from_args,
     rig_from_args,
 )

@@ -19,7 +19,7 @@ CASES = [
     (["synth", "--out", "never-written", "--noise-px"], ["-1", "inf"]),
     (["synth", "--out", "never-written", "--wand-frames"], ["2.5", "-3"]),  # 0: a session without a wand take
     (["reconstruct", "session", "--out", OUT, "--max-gap"], ["-1", "1.5", "nan"]),
-    (["reconstruct", "session", "--out", OUT, "--outlier-mm"], ["0", "-20", "inf"]),
+    (["reconstruct", "session", "--out", OUT, "--outlier-mm"], ["-20", "inf"]),  # 0 keeps every sample
     (["reconstruct", "session", "--out", OUT, "--max-reprojection-px"], ["0", "1e300"]),  # squared: overflow
     (["calibrate", "session", "--out", "c.json", "--max-frames"], ["0", "nan"]),
     (["compare", "a.csv", "b.csv", "--max-offset"], ["-1", "nan", "1e9"]),  # 1e9: a 1.5 TiB search grid

@@ -362,7 +362,7 @@ def make_case(k, rng, seed, work):
     if pick < 0.96:  # a numeric option
         command, option, base = rng.choice(OPTIONS)
         value, nonsense = rng.choice(OPTION_VALUES)
-        if option in ("--max-gap", "--dropout", "--noise-px", "--max-offset") and value == "0":
+        if option in ("--max-gap", "--dropout", "--noise-px", "--max-offset", "--outlier-mm") and value == "0":
             nonsense = False  # zero is a meaningful setting there (no gap filled, no search, no noise)
         return sub(base) + [option, value], option, f"{option} {value!r}", nonsense
     option, values = rng.choice(WORD_OPTIONS)
