@@ -39,7 +39,6 @@ def number(kind="positive", integer=False, maximum=None):
             raise argparse.ArgumentTypeError(f"expected at most {maximum:g}, got {text!r}")
         return value
 
-    parse.__name__ = "integer" if integer else "number"
     return parse
 
 

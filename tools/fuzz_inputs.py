@@ -108,9 +108,6 @@ def _leaves(doc, path=()):
     if isinstance(doc, dict):
         for k, v in doc.items():
             yield from _leaves(v, path + (k,))
-    elif isinstance(doc, list) and doc and not isinstance(doc[0], (dict, list)):
-        for i in range(len(doc)):
-            yield path + (i,), doc[i]
     elif isinstance(doc, list):
         for i, v in enumerate(doc):
             yield from _leaves(v, path + (i,))
@@ -142,7 +139,7 @@ def mutate_document(doc, rng, strict_keys):
     """One broken copy of a parsed TOML/JSON document: (doc, what, nonsense).
 
     ``nonsense`` is True when no reading of the document can be right,
-    None when that depends on the field, False when it may be valid.
+    False when it may be valid.
     """
     import copy
 
@@ -163,24 +160,22 @@ def mutate_document(doc, rng, strict_keys):
             target["unknown_key_zz"] = 1.0
             return doc, f"unknown key beside {where}", True
     name, bad, nonsense = rng.choice(BAD_SCALARS)
-    numeric = isinstance(value, (int, float)) and not isinstance(value, bool)
-    if nonsense is None:
-        nonsense = numeric and bool(POSITIVE.search(_field_name(path)))
-    if not numeric and name not in ("list", "table"):
-        nonsense = isinstance(value, bool) and name != "bool" or (isinstance(value, str) and name in ("list", "table"))
-    if isinstance(value, str) and name == "text":
-        bad, nonsense = value + "zz", None  # a misspelt choice or path
+    if isinstance(value, bool):
+        nonsense = name != "bool"  # a TOML boolean is a boolean
+    elif isinstance(value, (int, float)):
+        if nonsense is None:  # a negative: nonsense where the field is a size, rate or count
+            nonsense = bool(POSITIVE.search(_field_name(path)))
+    elif isinstance(value, str) and name == "text":
+        bad, nonsense = value + "zz", False  # a misspelt choice or path: the reader decides
+    else:  # text or null: only a list or a table in its place is surely wrong
+        nonsense = name in ("list", "table")
     _set(doc, path, bad)
-    return doc, f"{where} = {bad!r} ({name})", bool(nonsense)
-
-
-def _csv_rows(text):
-    return text.splitlines()
+    return doc, f"{where} = {bad!r} ({name})", nonsense
 
 
 def mutate_csv(text, rng, data_start):
     """One broken copy of a CSV: (text, what, nonsense)."""
-    lines = _csv_rows(text)
+    lines = text.splitlines()
     rows = list(range(data_start, len(lines)))
     kind = rng.random()
     if kind < 0.08:
