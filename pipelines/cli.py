@@ -46,14 +46,17 @@ def build_parser():
 
 def main(argv=None):
     """Entry point; returns the exit code."""
+    from ._signals import handle_termination
+
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
-        parser, handlers = build_parser()
-        args = parser.parse_args(argv)
-        if args.command is None:
-            parser.print_help()
-            return 0
-        return int(handlers[args.command](args) or 0)
+        with handle_termination():
+            parser, handlers = build_parser()
+            args = parser.parse_args(argv)
+            if args.command is None:
+                parser.print_help()
+                return 0
+            return int(handlers[args.command](args) or 0)
     except (UsageError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         print(f"dragline: error: {_one_line(exc)}", file=sys.stderr)
         return 2
@@ -62,12 +65,14 @@ def main(argv=None):
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-    except KeyboardInterrupt:
-        print("dragline: interrupted; no partial outputs were left under final names", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        return _stopped(exc)
     except Exception as exc:  # noqa: BLE001 - the last line of defence
         from dragline.simulate import SimulationError
 
+        interrupt = _interruption(exc)
+        if interrupt is not None:
+            return _stopped(interrupt)
         if isinstance(exc, SimulationError):
             print(f"dragline: {_one_line(exc)}", file=sys.stderr)
             return 1
@@ -76,6 +81,32 @@ def main(argv=None):
         traceback.print_exc()
         print(f"dragline: internal error: {_one_line(exc)}", file=sys.stderr)
         return 1
+
+
+def _interruption(exc):
+    """The KeyboardInterrupt (a signal) that ``exc`` was raised while handling, if any.
+
+    A signal that arrives inside compiled code (numba's dispatcher) comes out
+    as a SystemError whose context is the interrupt.
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+def _stopped(interrupt):
+    from ._signals import Terminated
+
+    if isinstance(interrupt, Terminated):
+        print(f"dragline: stopped by {interrupt}; workers stopped, no partial outputs were left under final names",
+              file=sys.stderr)
+        return interrupt.exit_code
+    print("dragline: interrupted; no partial outputs were left under final names", file=sys.stderr)
+    return 130
 
 
 def _one_line(exc):
