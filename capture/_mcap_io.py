@@ -29,7 +29,8 @@ crash, a partial copy) therefore keeps every complete chunk, and
 :func:`read_session` recovers them: a take cut short comes back *shorter*
 (only the frames received, never padded with NaN frames that would read as
 "not seen"), a take with no frame left comes back as ``None`` (the trial as a
-zero-frame array), and the report says what was lost.
+zero-frame array), and the report says what was lost. A corrupt chunk in the
+middle loses that chunk alone (``_mcap_scan``): its frames come back NaN.
 """
 
 from __future__ import annotations
@@ -39,10 +40,11 @@ import os
 from dataclasses import dataclass, field
 
 import numpy as np
-from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Schema
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.records import Channel, Message, Schema
 from mcap.writer import CompressionType, Writer
 
+from ._mcap_scan import MAGIC as _MAGIC
+from ._mcap_scan import scan_records
 from ._session_schema import SESSION_FORMAT, check_session_info
 from ._strict_json import json_text
 
@@ -63,7 +65,6 @@ TAKES = {  # take -> (topic, markers per frame or None for the trial's own)
 }
 CHUNK_SIZE = 256 * 1024
 _TAKE_GAP_NS = 1_000_000_000
-_MAGIC = b"\x89MCAP0\r\n"
 # Words that would reveal the generating physics (docs/interfaces.md); metadata is checked for them.
 _TRUTH_WORDS = ("truth", "physics", "mechanism", "chain_link_friction", "pulley_friction",
                 "pulley_inertia", "rope_bending_damping", "aero_drag")
@@ -116,24 +117,6 @@ class CaptureSession:
 
 
 # ----------------------------------------------------------------- file plumbing
-
-class _Truncated(Exception):
-    """The file ended inside a record."""
-
-
-class _StrictFile:
-    """Read-only view that refuses short reads, so a cut is caught at the record it cuts."""
-
-    def __init__(self, fh):
-        self._fh, self.pos = fh, 0
-
-    def read(self, n=-1):
-        data = self._fh.read(n)
-        if n is not None and n >= 0 and len(data) < n:
-            raise _Truncated(self.pos + len(data))
-        self.pos += len(data)
-        return data
-
 
 class _FlushingFile:
     """Write-through stream: each chunk the Writer finishes reaches the OS at once."""
@@ -188,7 +171,7 @@ def _scan(path, on_message):
     size = os.path.getsize(path)
     schemas, channels, stats = {}, {}, {}
     report = {"file_bytes": size, "bytes_recovered": 0, "complete": False,
-              "data_complete": False, "error": None, "chunks": 0, "messages": 0}
+              "data_complete": False, "error": None, "chunks": 0, "messages": 0, "lost_chunks": []}
 
     def take(record):
         if isinstance(record, Schema):
@@ -197,6 +180,9 @@ def _scan(path, on_message):
             channels[record.id] = record
         elif isinstance(record, Message):
             ch = channels.get(record.channel_id)
+            if ch is None and report["lost_chunks"]:  # its channel record was in a lost chunk
+                report["orphaned_messages"] = report.get("orphaned_messages", 0) + 1
+                return
             if ch is None:
                 raise ValueError(f"{path}: message on unknown channel {record.channel_id}")
             st = stats.setdefault(ch.id, {"messages": 0, "first": record.log_time,
@@ -210,43 +196,12 @@ def _scan(path, on_message):
     with open(path, "rb") as fh:
         if fh.read(len(_MAGIC)) != _MAGIC:
             raise ValueError(f"{path}: not an MCAP file (bad magic bytes)")
-        strict = _StrictFile(fh)
-        strict.pos = len(_MAGIC)
-        report["bytes_recovered"] = strict.pos
-        reader = StreamReader(strict, skip_magic=True, emit_chunks=True,
-                              record_size_limit=size)
-        records = reader.records
-        while True:
-            try:
-                record = next(records)
-                inner = (breakup_chunk(record, validate_crc=True)
-                         if isinstance(record, Chunk) else [record])
-            except StopIteration:
-                break
-            except _Truncated as exc:
-                report["error"] = f"file ends at byte {exc.args[0]} inside a record"
-                break
-            except Exception as exc:  # corrupt bytes: keep what came before them
-                first_line = (str(exc).splitlines() or [""])[0]
-                report["error"] = (f"unreadable record after byte {strict.pos}: "
-                                   f"{type(exc).__name__} {first_line}")
-                break
-            for rec in inner:
-                take(rec)
-            report["chunks"] += isinstance(record, Chunk)
-            report["bytes_recovered"] = strict.pos
-            if isinstance(record, DataEnd):
-                report["data_complete"] = True
-            if isinstance(record, Footer):
-                try:
-                    report["complete"] = strict.read(len(_MAGIC)) == _MAGIC
-                except _Truncated:
-                    pass
-                if report["complete"]:
-                    report["bytes_recovered"] = strict.pos
-                else:
-                    report["error"] = "the closing magic bytes are missing"
-                break
+        report["bytes_recovered"] = len(_MAGIC)
+        scan_records(fh, size, take, report)
+    for entry in report["lost_chunks"]:
+        by_id = entry.pop("messages_by_channel_id")
+        entry["messages"] = (None if by_id is None else
+                             {channels[i].topic if i in channels else f"channel {i}": n for i, n in by_id.items()})
     report["channels"] = [
         {"topic": ch.topic,
          "schema": schemas[ch.schema_id].name if ch.schema_id in schemas else "",
@@ -257,6 +212,43 @@ def _scan(path, on_message):
          "last_log_time_ns": stats.get(ch.id, {}).get("last")}
         for ch in channels.values()]
     return report
+
+
+def _lost_chunk_text(entry):
+    """One line for a damaged stretch of the file: where, when, what, why."""
+    t1, t2 = entry["first_log_time_ns"], entry["last_log_time_ns"]
+    when = ("log time unknown" if t1 is None and t2 is None else
+            f"log time {'?' if t1 is None else f'{t1 / 1e9:.3f}'}-{'?' if t2 is None else f'{t2 / 1e9:.3f}'} s")
+    what = ("" if not entry["messages"] else
+            "; " + ", ".join(f"{topic} {n} messages" for topic, n in sorted(entry["messages"].items())))
+    return f"bytes {entry['from_byte']}-{entry['to_byte']} ({when}{what}: {entry['reason']})"
+
+
+def _lost_text(scan, cut_text="messages after the last complete chunk"):
+    """What the scan could not read, beyond frames (which the session report counts).
+
+    ``cut_text`` describes a data section cut short (nothing when false).
+    """
+    lost = [f"corrupt stretch skipped, {_lost_chunk_text(e)}" for e in scan["lost_chunks"]]
+    if scan.get("orphaned_messages"):
+        lost.append(f"{scan['orphaned_messages']} messages whose channel was defined in a lost chunk")
+    if scan["data_complete"] and not scan["complete"]:
+        lost.append("no messages (all recovered); only the file's summary/footer is incomplete")
+    elif not scan["complete"] and cut_text:
+        lost.append(cut_text)
+    return lost
+
+
+def _frame_ranges(numbers):
+    """'3-7, 12' for the sorted frame numbers [3, 4, 5, 6, 7, 12]."""
+    out, start = [], None
+    for i, n in enumerate(numbers):
+        if start is None:
+            start = n
+        if i + 1 == len(numbers) or numbers[i + 1] != n + 1:
+            out.append(f"{start}" if start == n else f"{start}-{n}")
+            start = None
+    return ", ".join(out)
 
 
 # ----------------------------------------------------------------- session files
@@ -502,16 +494,17 @@ def _assemble(path, info, frames, scan):
             lost.append(f"{take} frames {n}-{spec['frames'] - 1} "
                         f"({spec['frames'] - n} of {spec['frames']})")
         if n > len(got):
-            notes.append(f"{take}: {n - len(got)} frames missing inside the take (NaN)")
+            missing = [i for i in range(n) if i not in got]
+            notes.append(f"{take}: {len(missing)} frames missing inside the take (NaN): frames "
+                         f"{_frame_ranges(missing)}")
         if spec["frames"] == 0:
             notes.append(f"{take}: not recorded in this session")
         arrays[take] = arr if (n or take == "trial") else None
-    if not scan["complete"]:
-        if scan["data_complete"]:
-            lost.append("no messages (all recovered); only the file's summary/footer is incomplete")
-        elif not lost:
-            lost.append("the end of the data section; no frames lost")
-    report = {"path": path, "truncated": not scan["complete"],
+    # Frames lost at a take's end already say what a cut lost; the scan adds
+    # corrupt stretches and an incomplete summary.
+    frames_lost = bool(lost)
+    lost.extend(_lost_text(scan, cut_text=not frames_lost and "the end of the data section; no frames lost"))
+    report = {"path": path, "truncated": not scan["complete"], "lost_chunks": scan["lost_chunks"],
               "lost": "; ".join(lost) if lost else "nothing",
               "error": scan["error"], "file_bytes": scan["file_bytes"],
               "bytes_recovered": scan["bytes_recovered"], "chunks": scan["chunks"],
@@ -598,9 +591,7 @@ def summarize_mcap(path):
            "error": scan["error"], "bytes_recovered": scan["bytes_recovered"],
            "chunks": scan["chunks"], "messages": scan["messages"],
            "channels": scan["channels"], "session": None,
-           "lost": ("nothing" if scan["complete"] else
-                    "no messages; only the file's summary/footer is incomplete"
-                    if scan["data_complete"] else "messages after the last complete chunk")}
+           "lost_chunks": scan["lost_chunks"], "lost": "; ".join(_lost_text(scan)) or "nothing"}
     if info is not None:
         arrays, report = _assemble(path, info, frames, scan)
         unseen = {}

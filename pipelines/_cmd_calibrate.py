@@ -58,8 +58,9 @@ def run(args):
         raise ValueError(f"--max-frames must be at least 100, got {args.max_frames}")
     path = session_file(args.session)
     session, report = read_session(path)
-    if report["truncated"]:
-        print(f"dragline: warning: {path} is cut short; lost: {report['lost']}", file=sys.stderr)
+    if report["lost"] != "nothing":
+        print(f"dragline: warning: {path} is {'cut short' if report['truncated'] else 'damaged'}; "
+              f"lost: {report['lost']}", file=sys.stderr)
     _takes(session, path)
     t0 = time.perf_counter()
     try:

@@ -130,7 +130,9 @@ def _fmt_s(v):
 
 
 def _mcap_text(s):
-    state = "complete" if not s["truncated"] else f"TRUNCATED ({s['error']}); lost: {s['lost']}"
+    state = ("complete" if not s["truncated"] and not s["lost_chunks"] else
+             f"DAMAGED, {len(s['lost_chunks'])} corrupt stretches skipped; lost: {s['lost']}" if not s["truncated"]
+             else f"TRUNCATED ({s['error']}); lost: {s['lost']}")
     lines = []
     if s["kind"] == "session":
         lines.append(f"{s['folder']}: session directory; files: {', '.join(s['files'])}")

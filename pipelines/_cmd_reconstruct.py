@@ -125,9 +125,9 @@ def run(args):
                 calibration_name=cal_path, **options)
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}") from None
-        summary["session"] = {k: report[k] for k in ("path", "truncated", "lost", "frames")}
-        if report["truncated"]:
-            notes.append(f"{path} was cut short; lost {report['lost']}")
+        summary["session"] = {k: report[k] for k in ("path", "truncated", "lost", "frames", "lost_chunks")}
+        if report["lost"] != "nothing":
+            notes.append(f"{path} is {'cut short' if report['truncated'] else 'damaged'}; lost {report['lost']}")
         if args.vicon_csv:
             write_vicon_csv(args.vicon_csv, [vicon_name(n) for n in names], points, session.rate_hz)
     write_trajectory_csv(args.out, table)

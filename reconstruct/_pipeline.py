@@ -588,7 +588,7 @@ def reconstruct_session(session, cameras, rig=None, method="paper", smoothing="r
                         "median_rms_px": tri["median_rms_px"][k]} for k, n in enumerate(names)},
     }
     if report is not None:
-        summary["session"] = _json({k: report[k] for k in ("path", "truncated", "lost", "frames")})
+        summary["session"] = _json({k: report[k] for k in ("path", "truncated", "lost", "frames", "lost_chunks")})
     return table, names, points, summary
 
 

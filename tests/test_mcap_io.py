@@ -192,20 +192,94 @@ def test_truncated_file_recovers_every_complete_chunk(tmp_path):
     assert "no messages" in report["lost"]
 
 
-def test_corrupt_chunk_keeps_what_came_before_it(tmp_path):
+def _frames_in(full, topic, chunk):
+    """Frame numbers of ``topic`` logged inside ``chunk`` (by mcap's own reader and index)."""
+    with open(full, "rb") as fh:
+        return sorted(json.loads(m.data)["frame"] for _, _, m in make_reader(fh).iter_messages(topics=[topic])
+                      if chunk.message_start_time <= m.log_time <= chunk.message_end_time)
+
+
+def _corrupt(full, tmp_path, edits):
+    data = bytearray(open(full, "rb").read())
+    for at, value in edits:
+        data[at] = value if value is not None else data[at] ^ 0xFF
+    path = tmp_path / "bad.mcap"
+    path.write_bytes(bytes(data))
+    return path
+
+
+def _assert_lost_exactly(session, back, lost_frames):
+    """Every trial frame back as written, except ``lost_frames``, which are all NaN."""
+    assert back.trial.shape == session.trial.shape
+    keep = np.setdiff1d(np.arange(session.trial.shape[1]), lost_frames)
+    np.testing.assert_array_equal(back.trial[:, keep], session.trial[:, keep])
+    assert np.isnan(back.trial[:, lost_frames]).all()
+
+
+@pytest.mark.parametrize("where", ["data", "crc", "length", "opcode"])
+def test_a_corrupt_chunk_loses_that_chunk_alone(tmp_path, where):
     session = make_session(seed=8, frames=300)
     full = write_session(tmp_path / "full.mcap", session, chunk_size=4096)
     _, chunks = _complete_chunk_cutoff(full, 0)
     bad = chunks[len(chunks) // 2]
-    data = bytearray(open(full, "rb").read())
-    data[bad.chunk_start_offset + bad.chunk_length - 5] ^= 0xFF  # inside the chunk's data
-    (tmp_path / "bad.mcap").write_bytes(bytes(data))
-    back, report = read_session(tmp_path / "bad.mcap")
-    last = chunks[len(chunks) // 2 - 1].message_end_time
-    n = sum(t <= last for t in _log_times(full, "/trial/centroids"))
-    assert back.trial.shape[1] == n < 300
-    np.testing.assert_array_equal(back.trial, session.trial[:, :n])
-    assert report["truncated"] is True and "unreadable record" in report["error"]
+    start, end = bad.chunk_start_offset, bad.chunk_start_offset + bad.chunk_length
+    edit = {"data": (end - 5, None),           # inside the compressed data: zstd or CRC fails
+            "crc": (start + 9 + 24, None),     # the stored CRC of the uncompressed records
+            "length": (start + 8, 0x7F),       # the record length: framing broken, read resyncs
+            "opcode": (start, 0x2A)}[where]    # an opcode MCAP does not define
+    back, report = read_session(_corrupt(full, tmp_path, [edit]))
+    lost = _frames_in(full, "/trial/centroids", bad)
+    assert 0 < len(lost) < 300
+    _assert_lost_exactly(session, back, lost)
+    assert report["truncated"] is False and report["error"] is None
+    [entry] = report["lost_chunks"]
+    assert entry["from_byte"] == start
+    assert entry["to_byte"] >= end
+    if where in ("data", "crc"):  # the framing held: the message indexes after it say what was lost
+        assert entry["to_byte"] == end
+        assert entry["messages"] == {"/trial/centroids": len(lost)}
+        assert (entry["first_log_time_ns"], entry["last_log_time_ns"]) == (bad.message_start_time,
+                                                                          bad.message_end_time)
+    else:  # the lost stretch is bounded by the good chunks on either side
+        before = chunks[len(chunks) // 2 - 1]
+        assert entry["first_log_time_ns"] == before.message_end_time
+        assert entry["last_log_time_ns"] >= bad.message_end_time
+    assert "corrupt stretch skipped" in report["lost"] and f"bytes {start}-" in report["lost"]
+    summary = summarize_mcap(tmp_path / "bad.mcap")
+    assert summary["lost_chunks"] == report["lost_chunks"]
+    assert "trial: %d frames missing" % len(lost) in " ".join(summary["session"]["notes"])
+
+
+def test_two_corrupt_chunks_and_a_cut(tmp_path):
+    session = make_session(seed=9, frames=400)
+    full = write_session(tmp_path / "full.mcap", session, chunk_size=4096)
+    _, chunks = _complete_chunk_cutoff(full, 0)
+    a, b, c = chunks[len(chunks) // 3], chunks[len(chunks) // 2], chunks[-3]
+    path = _corrupt(full, tmp_path, [(a.chunk_start_offset + a.chunk_length - 9, None),
+                                     (b.chunk_start_offset + 3, 0xEE)])
+    path.write_bytes(path.read_bytes()[: c.chunk_start_offset + 50])
+    back, report = read_session(path)
+    n = _frames_in(full, "/trial/centroids", c)[0]  # the cut ends the take there
+    lost = [f for f in _frames_in(full, "/trial/centroids", a) + _frames_in(full, "/trial/centroids", b)]
+    assert back.trial.shape[1] == n
+    keep = np.setdiff1d(np.arange(n), lost)
+    np.testing.assert_array_equal(back.trial[:, keep], session.trial[:, keep])
+    assert np.isnan(back.trial[:, lost]).all()
+    assert report["truncated"] is True and len(report["lost_chunks"]) == 2
+    assert f"trial frames {n}-399" in report["lost"]
+
+
+def test_garbage_after_the_last_chunk_keeps_every_frame(tmp_path):
+    session = make_session(seed=10, frames=120)
+    full = write_session(tmp_path / "full.mcap", session, chunk_size=4096)
+    data = open(full, "rb").read()
+    _, chunks = _complete_chunk_cutoff(full, 0)
+    end = chunks[-1].chunk_start_offset + chunks[-1].chunk_length
+    path = tmp_path / "bad.mcap"
+    path.write_bytes(data[:end] + bytes(range(32, 250)) * 4)  # 0x20: no MCAP opcode
+    back, report = read_session(path)
+    np.testing.assert_array_equal(back.trial, session.trial)
+    assert report["truncated"] is True and "unreadable record after byte" in report["error"]
 
 
 def test_cut_inside_first_chunk_has_no_session_info(tmp_path):

@@ -264,8 +264,8 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
 
     if kind == "session":
         session, report = read_session(file)
-        if report.get("truncated"):
-            note(f"{file} was cut short; lost {report.get('lost')}")
+        if report.get("lost", "nothing") != "nothing":
+            note(f"{file} is {'cut short' if report.get('truncated') else 'damaged'}; lost {report.get('lost')}")
         if maneuver is None:
             if beside and os.path.isfile(beside) and os.path.dirname(os.path.abspath(file)) == os.path.abspath(folder):
                 maneuver, source["maneuver"] = read_maneuver_csv(beside), beside
