@@ -18,7 +18,7 @@ def add_parser(sub):
                     "quantities, time windows, frequencies, free decay), fit every optional mechanism through "
                     "the simulator, score each on held-out data against what measurement noise alone gives, and "
                     "name one, 'none' (the model fits within noise) or 'unexplained'.")
-    p.add_argument("input", metavar="SESSION_DIR|capture.mcap|export.csv|MEASURED.csv",
+    p.add_argument("input", metavar="SESSION_DIR|capture.mcap|export.csv|.c3d|.trc|MEASURED.csv",
                    help="a session, a VICON-style marker CSV or a measured trajectory table")
     p.add_argument("--maneuver", default=None, metavar="dig|FILE.csv",
                    help="reel table of the recording (default: the session's; for a CSV, maneuver.csv beside "

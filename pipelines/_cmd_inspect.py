@@ -1,6 +1,7 @@
 """``dragline inspect``: say what a capture file holds.
 
-Reads a session directory or MCAP file, a VICON CSV export, a trajectory
+Reads a session directory or MCAP file, a VICON CSV export, a C3D or TRC
+marker file, a trajectory
 or maneuver table (CSV with a ``time`` column) or a ``cameras.json``, and
 prints sections, rates, subjects and markers, frames, gap counts and
 channels; ``--json`` prints the same as one JSON object with a ``kind``.
@@ -15,7 +16,10 @@ import numpy as np
 import pandas as pd
 
 from dragline.capture import read_session, summarize_mcap, summarize_vicon_csv
+from dragline.capture._c3d import is_c3d
 from dragline.capture._cameras import camera_centre, load_cameras
+from dragline.capture._marker_file import read_marker_file
+from dragline.capture._trc import is_trc
 from dragline.capture._session_io import session_file
 from dragline.capture._strict_json import json_text
 from dragline.compare import read_trajectory_table
@@ -27,8 +31,10 @@ _MCAP_MAGIC = b"\x89MCAP0\r\n"
 def add_parser(sub):
     p = sub.add_parser("inspect", help="print what a capture file holds",
                        description="Print what a file holds: a session directory or MCAP file, a VICON CSV "
-                                   "export, a trajectory or maneuver table, or cameras.json.")
-    p.add_argument("file", metavar="FILE", help="session directory, .mcap, VICON .csv, table .csv or cameras.json")
+                                   "export, a C3D or TRC marker file, a trajectory or maneuver table, or "
+                                   "cameras.json.")
+    p.add_argument("file", metavar="FILE",
+                   help="session directory, .mcap, VICON .csv, .c3d, .trc, table .csv or cameras.json")
     p.add_argument("--json", action="store_true", help="print a JSON object for scripts")
 
 
@@ -89,6 +95,17 @@ def _table(path):
             "entities": entities, "column_names": list(frame.columns), "nan_values": nan}
 
 
+def _marker_file(path):
+    """Summary of a C3D or TRC file; its first bytes decide (a C3D saved as .dat is still a C3D)."""
+    from dragline.capture._c3d import read_c3d
+    from dragline.capture._trc import read_trc
+
+    markers = read_c3d(path) if is_c3d(path) else read_trc(path) if is_trc(path) else read_marker_file(path)
+    summary = markers.summary()
+    summary["gaps"] = _gap_table(~np.isfinite(markers.positions).all(axis=-1), markers.names)
+    return {"kind": markers.format, **summary}
+
+
 def _cameras(path):
     cameras = load_cameras(path)
     with open(path) as fh:
@@ -113,12 +130,14 @@ def inspect_path(path):
         return _mcap(path)
     if head.lstrip()[:1] == b"{":
         return _cameras(path)
+    if is_c3d(path) or is_trc(path) or path.lower().endswith((".c3d", ".trc")):
+        return _marker_file(path)
     try:
         return {"kind": "vicon_csv", **summarize_vicon_csv(path)}
     except ValueError as exc:
         table = _table(path)
         if table is None:
-            raise ValueError(f"{path}: not a session, MCAP, VICON CSV, table CSV or cameras.json file "
+            raise ValueError(f"{path}: not a session, MCAP, VICON CSV, C3D, TRC, table CSV or cameras.json file "
                              f"({' '.join(str(exc).split())})") from None
         return table
 
@@ -204,6 +223,32 @@ def _vicon_text(s):
     return lines
 
 
+def _marker_file_text(s):
+    fmt = {"c3d": "C3D", "trc": "TRC"}[s["format"]]
+    lines = [f"{s['path']}: {fmt}, {len(s['markers'])} markers, {s['frames']} frames at {s['rate_hz']:g} Hz "
+             f"(frames {s['first_frame']}-{s['first_frame'] + s['frames'] - 1}, {_fmt_s(s['duration_s'])} s), "
+             f"units {s['units']}"]
+    for k, v in s["info"].items():
+        lines.append(f"  {k}: {v}")
+    groups = {}
+    for m in s["markers"]:
+        subject, _, marker = m.rpartition(":")
+        groups.setdefault(subject or "-", []).append(marker)
+    for subject, markers in groups.items():
+        lines.append(f"  subject {subject if subject != '-' else '(none)'}: {' '.join(markers)}")
+    a = s["analog"]
+    if a["channels"]:
+        lines.append(f"  analog: {len(a['channels'])} channels at {a['rate_hz']:g} Hz, {a['frames']} samples: "
+                     + ", ".join(f"{c} ({u})" if u else c for c, u in zip(a["channels"], a["units"] + [""] * 99)))
+    else:
+        lines.append("  analog: none")
+    gaps = {m: g for m, g in s["gaps"].items() if g["nan_frames"]}
+    lines.append(f"  gaps: {len(gaps)} of {len(s['markers'])} markers" + (":" if gaps else ""))
+    for m, g in gaps.items():
+        lines.append(f"    {m:<24} {g['nan_frames']:>6} frames in {g['gap_runs']} gaps, longest {g['longest_gap']}")
+    return lines
+
+
 def _table_text(s):
     rate = "uneven steps" if s["rate_hz"] is None else f"{s['rate_hz']:g} Hz"
     lines = [f"{s['path']}: table CSV, {s['rows']} rows x {s['columns']} columns, time "
@@ -230,7 +275,7 @@ def _cameras_text(s):
 
 
 _TEXT = {"session": _mcap_text, "mcap": _mcap_text, "vicon_csv": _vicon_text, "table": _table_text,
-         "cameras": _cameras_text}
+         "cameras": _cameras_text, "c3d": _marker_file_text, "trc": _marker_file_text}
 
 
 def run(args):

@@ -1,10 +1,10 @@
 """``dragline reconstruct``: 2D centroids or 3D markers -> measured trajectory table.
 
-Input is a session directory, its ``capture.mcap``, or a VICON-style CSV of
-labelled 3D markers. A session needs a calibration (``--calibration``, or a
-``cameras.json`` in the session directory); a CSV needs none. A session
-directory without ``capture.mcap`` but with a ``markers.csv`` is read as
-that CSV.
+Input is a session directory, its ``capture.mcap``, or a file of labelled 3D
+markers: a VICON-style CSV, a C3D or a TRC file. A session needs a
+calibration (``--calibration``, or a ``cameras.json`` in the session
+directory); a marker file needs none. A session directory without
+``capture.mcap`` but with a ``markers.csv`` is read as that CSV.
 """
 
 from __future__ import annotations
@@ -13,13 +13,16 @@ import os
 import sys
 
 from dragline.capture import write_vicon_csv
+from dragline.capture._c3d import write_c3d
+from dragline.capture._marker_file import MARKER_FILE_EXTENSIONS
+from dragline.capture._trc import write_trc
 from dragline.capture._cameras import load_cameras
 from dragline.capture._strict_json import write_json
 from dragline.reconstruct._pipeline import (
     METHODS,
     SMOOTHINGS,
+    reconstruct_marker_file,
     reconstruct_session,
-    reconstruct_vicon_csv,
     vicon_name,
 )
 from dragline.simulate import write_trajectory_csv
@@ -32,13 +35,16 @@ def add_parser(sub):
     p = sub.add_parser(
         "reconstruct", help="triangulate a capture and recover bodies, ropes and rates",
         description="Recover the measured trajectory table (mass centres, Euler angles, velocities, "
-                    "body rates, rope lengths) from a capture session or a VICON-style marker CSV.")
-    p.add_argument("input", metavar="SESSION_DIR|capture.mcap|export.csv", help="what to reconstruct")
+                    "body rates, rope lengths) from a capture session or a file of labelled 3D markers "
+                    "(VICON-style CSV, C3D, TRC).")
+    p.add_argument("input", metavar="SESSION_DIR|capture.mcap|MARKERS.csv|.c3d|.trc", help="what to reconstruct")
     p.add_argument("--calibration", metavar="cameras.json",
                    help="camera calibration (default: cameras.json in the session directory)")
     p.add_argument("--out", required=True, metavar="MEASURED.csv", help="trajectory table to write")
     p.add_argument("--vicon-csv", metavar="MARKERS.csv",
                    help="also write the triangulated, labelled markers (before gap filling) as a VICON-style CSV")
+    p.add_argument("--c3d", metavar="MARKERS.c3d", help="the same markers as a C3D file (mm, residual -1 in gaps)")
+    p.add_argument("--trc", metavar="MARKERS.trc", help="the same markers as a TRC file (mm, empty cells in gaps)")
     p.add_argument("--rig", metavar="FILE", help="rig TOML file (default: the built-in 1/16-scale rig)")
     p.add_argument("--method", choices=METHODS, default="paper",
                    help="body frames: the paper's Eqs. 14-16 or a least-squares rigid fit (default paper)")
@@ -58,23 +64,24 @@ def add_parser(sub):
 
 
 def _resolve_input(path):
-    """('session', mcap path, session dir or None) or ('csv', csv path, None)."""
+    """('session', mcap path, session dir or None) or ('markers', marker file path, None)."""
     if os.path.isdir(path):
         mcap = os.path.join(path, "capture.mcap")
         if os.path.isfile(mcap):
             return "session", mcap, path
         csv = os.path.join(path, "markers.csv")
         if os.path.isfile(csv):
-            return "csv", csv, None
+            return "markers", csv, None
         raise ValueError(f"{path}: session directory holds neither capture.mcap nor markers.csv")
     if not os.path.exists(path):
         raise ValueError(f"{path}: no such file or directory")
     ext = os.path.splitext(path)[1].lower()
     if ext == ".mcap":
         return "session", path, None
-    if ext == ".csv":
-        return "csv", path, None
-    raise ValueError(f"{path}: expected a session directory, a .mcap session file or a .csv marker export")
+    if ext in MARKER_FILE_EXTENSIONS:
+        return "markers", path, None
+    raise ValueError(f"{path}: expected a session directory, a .mcap session file or a marker file "
+                     "(.csv VICON export, .c3d, .trc)")
 
 
 def _calibration(args, session_dir, session_path):
@@ -91,11 +98,11 @@ def _calibration(args, session_dir, session_path):
 
 
 def run(args):
-    outputs = [p for p in (args.out, args.vicon_csv, args.summary_json) if p]
+    outputs = [p for p in (args.out, args.vicon_csv, args.c3d, args.trc, args.summary_json) if p]
     for p in outputs:
         check_output_path(p)
     if len(set(map(os.path.abspath, outputs))) != len(outputs):
-        raise ValueError("--out, --vicon-csv and --summary-json must name different files")
+        raise ValueError("--out, --vicon-csv, --c3d, --trc and --summary-json must name different files")
     if args.max_gap < 0:
         raise ValueError("--max-gap must be >= 0")
     if not args.outlier_mm >= 0:
@@ -108,12 +115,14 @@ def run(args):
     options = dict(rig=rig, method=args.method, smoothing=args.smoothing, max_gap=args.max_gap,
                    max_deviation=args.outlier_mm * 1e-3 if args.outlier_mm > 0 else None)
     notes = []
-    if kind == "csv":
-        if args.vicon_csv:
-            raise ValueError("--vicon-csv needs a capture session as input (the input is already a marker CSV)")
+    marker_outputs = [f"--{k.replace('_', '-')}" for k in ("vicon_csv", "c3d", "trc") if getattr(args, k)]
+    if kind == "markers":
+        if marker_outputs:
+            raise ValueError(f"{marker_outputs[0]} needs a capture session as input (the input is already a "
+                             "marker file)")
         if args.calibration:
-            notes.append("--calibration ignored: a marker CSV is already three-dimensional")
-        table, summary = reconstruct_vicon_csv(path, **options)
+            notes.append("--calibration ignored: a marker file is already three-dimensional")
+        table, summary = reconstruct_marker_file(path, **options)
     else:
         from dragline.capture import read_session  # noqa: PLC0415
 
@@ -128,8 +137,13 @@ def run(args):
         summary["session"] = {k: report[k] for k in ("path", "truncated", "lost", "frames", "lost_chunks")}
         if report["lost"] != "nothing":
             notes.append(f"{path} is {'cut short' if report['truncated'] else 'damaged'}; lost {report['lost']}")
+        labels = [vicon_name(n) for n in names]
         if args.vicon_csv:
-            write_vicon_csv(args.vicon_csv, [vicon_name(n) for n in names], points, session.rate_hz)
+            write_vicon_csv(args.vicon_csv, labels, points, session.rate_hz)
+        if args.c3d:
+            write_c3d(args.c3d, labels, points, session.rate_hz)
+        if args.trc:
+            write_trc(args.trc, labels, points, session.rate_hz)
     write_trajectory_csv(args.out, table)
     if args.summary_json:
         write_json(args.summary_json, summary)
@@ -143,7 +157,7 @@ def run(args):
             f"gaps: {total['spline_gaps']} filled by spline, "
             f"{total['rigid_frames']} marker-frames from rigid bodies, {total['open_gaps']} left open "
             f"({total['open_frames']} marker-frames, limit {args.max_gap} frames); wrote {args.out}"
-            + (f" and {args.vicon_csv}" if args.vicon_csv else ""),
+            + "".join(f" and {p}" for p in (args.vicon_csv, args.c3d, args.trc) if p),
             file=sys.stderr,
         )
     return 0

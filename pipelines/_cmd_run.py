@@ -11,7 +11,7 @@ def add_parser(sub):
     p = sub.add_parser("run", help="the whole pipeline: capture, calibrate, reconstruct, simulate, compare",
                        description="Run every stage. With no input: a synthetic lab session of the paper's dig "
                        "maneuver whose hidden lab truth damps faster than the nominal model.")
-    p.add_argument("source", nargs="?", metavar="SESSION_DIR|capture.mcap|export.csv",
+    p.add_argument("source", nargs="?", metavar="SESSION_DIR|capture.mcap|MARKERS.csv|.c3d|.trc",
                    help="a capture to process (default: the built-in synthetic session)")
     p.add_argument("--out", default="dragline-out", metavar="OUT_DIR", help="output directory (default ./dragline-out)")
     p.add_argument("--maneuver", metavar="dig|FILE.csv", help="reel table (default: the session's own)")

@@ -163,7 +163,8 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
     from dragline.capture import calibrate, read_session, save_cameras, write_results
     from dragline.compare import compare_tables, discretization_study, write_report
     from dragline.compare._files import write_json
-    from dragline.reconstruct import reconstruct_session, reconstruct_vicon_csv
+    from dragline.capture._marker_file import MARKER_FILE_EXTENSIONS
+    from dragline.reconstruct import reconstruct_marker_file, reconstruct_session
     from dragline.simulate import dig_maneuver, load_rig, read_maneuver_csv, simulate, write_trajectory_csv
 
     sim, rec = config["simulate"], config["reconstruct"]
@@ -177,9 +178,9 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
         session, maneuver = stage("synthesise the lab session", _builtin_session, tmp, seed, rig)
         files["session"] = str(tmp / "session")
         files["truth"] = str(tmp / "truth")
-    elif str(source).lower().endswith(".csv"):
+    elif str(source).lower().endswith(MARKER_FILE_EXTENSIONS):
         maneuver = maneuver or dig_maneuver()
-        measured, _ = stage("reconstruct the VICON export", reconstruct_vicon_csv, source, rig, **options)
+        measured, _ = stage("reconstruct the marker file", reconstruct_marker_file, source, rig, **options)
         session = None
     else:
         from dragline.capture._session_io import session_file

@@ -18,6 +18,6 @@ from ._rates import (
     make_smoother,
     running_average,
 )
-from ._pipeline import fill_markers, reconstruct_markers, reconstruct_session, reconstruct_vicon_csv, trajectory_from_markers
+from ._pipeline import fill_markers, reconstruct_markers, reconstruct_marker_file, reconstruct_session, reconstruct_vicon_csv, trajectory_from_markers
 from ._ropes import rope_length_cubic
 from ._triangulate import triangulate, undistort_detections

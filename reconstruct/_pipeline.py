@@ -75,6 +75,7 @@ __all__ = [
     "trajectory_from_markers",
     "reconstruct_session",
     "reconstruct_vicon_csv",
+    "reconstruct_marker_file",
     "match_cameras",
     "vicon_name",
 ]
@@ -613,22 +614,39 @@ def reconstruct_vicon_csv(path, rig=None, method="paper", smoothing="running_ave
         One line starting with the path: unreadable file, no Trajectories
         section, missing rig markers, frame numbers out of order.
     """
-    from ..capture import marker_trajectories, read_vicon_csv  # noqa: PLC0415
+    return reconstruct_marker_file(path, rig, method, smoothing, max_gap, max_deviation)
+
+
+def reconstruct_marker_file(path, rig=None, method="paper", smoothing="running_average", max_gap=10,
+                            max_deviation=0.02):
+    """Trajectory table from labelled 3D markers: a VICON-style CSV, a C3D or a TRC file.
+
+    The format is told by the extension (``.csv``, ``.c3d``, ``.trc``);
+    lengths come from the file's units; a marker not seen (C3D: negative
+    residual; TRC: empty cells) is a gap. Options as for
+    ``trajectory_from_markers``.
+
+    Returns
+    -------
+    table : pandas.DataFrame
+    summary : dict
+        As for ``trajectory_from_markers``, plus ``path`` and ``format``.
+
+    Raises
+    ------
+    ValueError
+        One line starting with the path: unreadable file, missing rig
+        markers (named), frame numbers out of order.
+    """
+    from ..capture._marker_file import read_marker_file  # noqa: PLC0415
 
     path = os.fspath(path)
-    export = read_vicon_csv(path)
-    names, positions = marker_trajectories(export)
-    frame = export.trajectories.frame
-    if frame.size == 0:
-        raise ValueError(f"{path}: the Trajectories section has no frames")
-    if np.any(np.diff(frame) <= 0):
-        raise ValueError(f"{path}: frame numbers are not increasing")
-    full = np.full((int(frame[-1] - frame[0]) + 1,) + positions.shape[1:], np.nan)
-    full[frame - frame[0]] = positions
+    markers = read_marker_file(path)
     try:
-        table, summary = trajectory_from_markers(names, full, export.trajectories.rate_hz, rig,
+        table, summary = trajectory_from_markers(markers.names, markers.positions, markers.rate_hz, rig,
                                                  method, smoothing, max_gap, max_deviation=max_deviation)
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
     summary["path"] = path
+    summary["format"] = markers.format
     return table, summary

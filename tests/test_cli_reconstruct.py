@@ -182,3 +182,20 @@ def test_the_installed_command_exits_2(lab, tmp_path):
     assert proc.returncode == 2
     assert len(proc.stderr.strip().splitlines()) == 1 and "no calibration" in proc.stderr
     assert not out.exists()
+
+
+def test_session_markers_written_as_csv_c3d_and_trc_alike(lab, tmp_path):
+    from dragline.capture._marker_file import read_marker_file
+
+    paths = {ext: tmp_path / f"markers.{ext}" for ext in ("csv", "c3d", "trc")}
+    assert run_cli(lab["session"], "--calibration", lab["cameras"], "--out", tmp_path / "m.csv", "--quiet",
+                   "--vicon-csv", paths["csv"], "--c3d", paths["c3d"], "--trc", paths["trc"]) == 0
+    files = {ext: read_marker_file(p) for ext, p in paths.items()}
+    ref = files["csv"]
+    assert ref.positions.shape == (len(lab["truth"]), len(lab["names"]), 3)
+    for ext in ("c3d", "trc"):
+        assert files[ext].names == ref.names and files[ext].rate_hz == ref.rate_hz
+        assert np.array_equal(np.isnan(files[ext].positions), np.isnan(ref.positions))  # the open gap too
+        np.testing.assert_allclose(files[ext].positions, ref.positions, atol=1e-6, equal_nan=True)
+    # A marker file as input cannot have marker files as outputs: there is nothing to triangulate.
+    assert run_cli(paths["c3d"], "--out", tmp_path / "n.csv", "--trc", tmp_path / "n.trc") == 2

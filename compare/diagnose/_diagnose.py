@@ -96,6 +96,7 @@ from ._updating import (
     mark_model_error,
     model_error,
     nuisance_correlation,
+    parameter_span_share,
     update_model,
 )
 
@@ -128,6 +129,9 @@ MODEL_ERROR_SHARE = 0.25
 # A second mechanism must explain at least this share of the chi2 the named
 # model leaves above noise (see ``diagnose``).
 SECOND_EXCESS_SHARE = 0.4
+# A candidate (not the lead) whose signature a parameter change reproduces
+# to this share is refitted jointly with the parameters too (``diagnose``).
+SPAN_REFIT = 0.7
 FREE_DECAY_KEYS = ("frequency_hz", "damping_ratio", "amplitude", "shape", "confidence", "decay_rate",
                    "decrement_per_cycle", "quadratic_coefficient")
 DECAY_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch", "drag_cluster.x", "spreader_bar.pitch",
@@ -245,7 +249,7 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
         if os.path.isfile(os.path.join(path, "capture.mcap")):
             kind, file = "session", os.path.join(path, "capture.mcap")
         elif os.path.isfile(os.path.join(path, "markers.csv")):
-            kind, file = "vicon", os.path.join(path, "markers.csv")
+            kind, file = "markers", os.path.join(path, "markers.csv")
         else:
             raise ValueError(f"{path}: the directory holds neither capture.mcap nor markers.csv")
     elif os.path.isfile(path):
@@ -253,9 +257,12 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
         if ext == ".mcap":
             kind, file = "session", path
         elif ext == ".csv":
-            kind, file = ("table" if _is_trajectory_table(path) else "vicon"), path
+            kind, file = ("table" if _is_trajectory_table(path) else "markers"), path
+        elif ext in (".c3d", ".trc"):
+            kind, file = "markers", path
         else:
-            raise ValueError(f"{path}: expected a session directory, a .mcap file or a .csv file")
+            raise ValueError(f"{path}: expected a session directory, a .mcap file, a .csv file (VICON export or "
+                             "trajectory table), a .c3d or a .trc file")
         folder = os.path.dirname(os.path.abspath(path))
     else:
         raise ValueError(f"{path}: no such file or directory")
@@ -278,10 +285,10 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
             table, _, _, _ = reconstruct_session(session, cameras, rig=rig)
         except ValueError as exc:
             raise ValueError(f"{file}: {exc}") from None
-    elif kind == "vicon":
-        from ...reconstruct._pipeline import reconstruct_vicon_csv
+    elif kind == "markers":
+        from ...reconstruct._pipeline import reconstruct_marker_file
 
-        table, _ = reconstruct_vicon_csv(file, rig=rig)
+        table, _ = reconstruct_marker_file(file, rig=rig)
     else:
         table = read_trajectory_table(file, "measured")
     if maneuver is None:
@@ -691,7 +698,18 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         eligible = sorted((c for c in runnable if scored[c["name"]]["value"] > 0
                            and scored[c["name"]]["improvement"] > 0 and not scored[c["name"]]["at_bound"]),
                           key=lambda c: -scored[c["name"]]["improvement"])
-        for lead in eligible[:1]:
+        # The candidate a parameter change imitates best lost most to
+        # updating: refitted jointly as well, when it is not the lead.
+        span = {c["name"]: parameter_span_share(problem, scored[c["name"]]["sim"] - base_sim, update)
+                for c in eligible}
+        if span:
+            note("share of each candidate's signature a parameter change reproduces: "
+                 + ", ".join(f"{n} {v:.2f}" for n, v in span.items()))
+        refit = eligible[:1]
+        imitated = [c for c in eligible[1:] if span[c["name"]] >= SPAN_REFIT]
+        if imitated:
+            refit.append(max(imitated, key=lambda c: span[c["name"]]))
+        for lead in refit:
             s = scored[lead["name"]]
             note(f"refitting {lead['name']} and the rig parameters together")
             joint = joint_refit(plain_problem, nominal_ctx, update,
@@ -769,6 +787,8 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
             "significant": bool(s["improvement"] > threshold and value > 0),
             "signature_match": sig_match,
             "nuisance_correlation": confounders,
+            "parameter_span_share": (parameter_span_share(problem, s["sim"] - base_sim, update)
+                                     if update is not None and s["value"] > 0 else 0.0),
             "explained_fraction": frac,
             "at_bound": s["at_bound"],
             "time_shift_s": float(s["evaluation"]["nuisance"][1]),

@@ -650,6 +650,46 @@ def nuisance_correlation(problem, signature, update, most=3):
     return out[:most]
 
 
+def parameter_span_share(problem, signature, update):
+    """Share of a mechanism's signature that some change of the rig parameters reproduces.
+
+    The squared multiple correlation of the signature with all parameters'
+    sensitivities together (chi2 metric, per-channel offsets removed): 1
+    means a combination of parameter changes looks exactly like the
+    mechanism, so updating, which runs before any mechanism, will have
+    taken up much of it (a sheave's inertia read as two cluster masses at
+    once, where no single parameter's cosine passes 0.85).
+
+    Parameters
+    ----------
+    problem : Problem
+    signature : ndarray (n, c)
+        The mechanism's fitted minus the updated model's simulation.
+    update : dict
+        ``update_model``'s result.
+
+    Returns
+    -------
+    float
+        In [0, 1]; 0 when the signature or every sensitivity is zero.
+    """
+    W = problem.W
+    sw = np.maximum(W.sum(0), 1e-300)
+
+    def centred(x):
+        x = np.where(problem.valid, x, 0.0)
+        return ((x - (W * x).sum(0) / sw) * np.sqrt(W)).ravel()
+
+    g = centred(signature)
+    gg = float(g @ g)
+    if gg == 0.0 or not update["sensitivities"]:
+        return 0.0
+    J = np.column_stack([centred(s) for s in update["sensitivities"]])
+    coef, *_ = np.linalg.lstsq(J, g, rcond=1e-10)
+    fitted = J @ coef
+    return float(min(1.0, max(0.0, (fitted @ fitted) / gg)))
+
+
 def _apply(X, a, problem, shape):
     """Unweighted fitted part of X a (the columns are weighted by sqrt(W))."""
     sw = np.sqrt(problem.W)

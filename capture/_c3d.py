@@ -1,0 +1,174 @@
+"""C3D files in and out, through ezc3d.
+
+ezc3d (pyomeca, MIT licence, wheels on PyPI) reads the processor formats
+(Intel, DEC, MIPS), integer and float storage, point scaling and the
+``LABELS2``-style continuations that Vicon, Qualisys, Optotrak and Motion
+Analysis files use, and it writes C3D as well; it is maintained and used by
+the biomechanics community (pyomeca, OpenSim pipelines). The pure-Python
+``c3d`` package was the alternative; its reader covers fewer of the
+variants that real labs produce.
+
+Reading: POINT:LABELS (and LABELS2, ...), POINT:RATE, POINT:UNITS (mm when
+absent, the C3D default), the header's first frame. A point whose residual
+is negative is a gap (NaN), as the C3D format defines it; so is a point
+the library returns as NaN. Analog channels are described (labels, rate,
+units, frames), not used.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ._marker_file import MAX_FRAMES, MarkerFile, metres_per_unit
+
+__all__ = ["read_c3d", "write_c3d", "is_c3d"]
+
+# Byte 2 of every C3D file (the header's "key"); byte 1 points at the parameter block.
+_KEY = 0x50
+_BLOCK = 512
+
+
+def is_c3d(path):
+    """True when ``path`` starts like a C3D file (header key 0x50, parameter block inside the file)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(2)
+        size = os.path.getsize(path)
+    except OSError:
+        return False
+    return len(head) == 2 and head[1] == _KEY and 1 <= head[0] and head[0] * _BLOCK <= size
+
+
+def _param(params, group, name, default=None):
+    try:
+        return params[group][name]["value"]
+    except KeyError:
+        return default
+
+
+def _labels(params, n):
+    """POINT:LABELS then LABELS2, LABELS3, ... (files with more than 255 points), cut to ``n``."""
+    labels = list(_param(params, "POINT", "LABELS", []) or [])
+    k = 2
+    while len(labels) < n and _param(params, "POINT", f"LABELS{k}") is not None:
+        labels += list(_param(params, "POINT", f"LABELS{k}"))
+        k += 1
+    labels = [str(x).strip() for x in labels[:n]]
+    labels += [f"point{i + 1}" for i in range(len(labels), n)]  # unlabelled points keep a name
+    return labels
+
+
+def read_c3d(path):
+    """Read the 3D points of a C3D file.
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    MarkerFile
+        Positions in metres (from POINT:UNITS), NaN where the residual is
+        negative or the point is missing.
+
+    Raises
+    ------
+    ValueError
+        One line starting with the path: not a C3D file, unreadable, no 3D
+        points, a bad rate or unit, duplicate labels.
+    """
+    import ezc3d  # noqa: PLC0415 - only C3D input needs it
+
+    path = os.fspath(path)
+    if not is_c3d(path):
+        raise ValueError(f"{path}: not a C3D file (no C3D header)")
+    try:
+        c3d = ezc3d.c3d(path, extract_forceplat_data=False)
+    except Exception as exc:  # noqa: BLE001 - the library raises RuntimeError, IndexError, ... on bad bytes
+        raise ValueError(f"{path}: unreadable C3D file ({' '.join(str(exc).split())[:120]})") from None
+    params, data, header = c3d["parameters"], c3d["data"], c3d["header"]
+    points = np.asarray(data["points"], dtype=float)
+    n_points = points.shape[1] if points.ndim == 3 else 0
+    if n_points == 0:
+        raise ValueError(f"{path}: the C3D file holds no 3D points")
+    if points.shape[2] > MAX_FRAMES:
+        raise ValueError(f"{path}: {points.shape[2]} frames is more than this tool reads ({MAX_FRAMES})")
+    rate = float((_param(params, "POINT", "RATE") or [header["points"]["frame_rate"]])[0])
+    if not (np.isfinite(rate) and rate > 0):
+        raise ValueError(f"{path}: POINT:RATE is {rate:g}; a frame rate must be positive")
+    units_list = [str(u).strip() for u in (_param(params, "POINT", "UNITS") or []) if str(u).strip()]
+    units = units_list[0] if units_list else "mm"
+    if len(set(units_list)) > 1:
+        raise ValueError(f"{path}: POINT:UNITS mixes {', '.join(sorted(set(units_list)))}")
+    scale = metres_per_unit(units, f"{path}: POINT:UNITS")
+    names = _labels(params, n_points)
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ValueError(f"{path}: point label {dup[0]!r} appears more than once")
+    xyz = np.transpose(points[:3], (2, 1, 0)) * scale  # (frames, points, 3): time first
+    residuals = np.asarray(data.get("meta_points", {}).get("residuals", np.zeros((1, n_points, 0))), float)
+    gap = ~np.isfinite(xyz).all(axis=-1)
+    if residuals.shape[1:] == (n_points, xyz.shape[0]):
+        gap |= residuals[0].T < 0
+    xyz[gap] = np.nan
+    analog_labels = [str(x).strip() for x in (_param(params, "ANALOG", "LABELS") or [])]
+    analogs = np.asarray(data.get("analogs", np.zeros((1, 0, 0))))
+    analog = {"channels": analog_labels[: analogs.shape[1]] if analogs.ndim == 3 else [],
+              "rate_hz": float((_param(params, "ANALOG", "RATE") or [0.0])[0]),
+              "units": [str(u).strip() for u in (_param(params, "ANALOG", "UNITS") or [])][: len(analog_labels)],
+              "frames": int(analogs.shape[2]) if analogs.ndim == 3 else 0}
+    info = {}
+    for key in ("COMPANY", "SOFTWARE", "VERSION_LABEL"):
+        value = _param(params, "MANUFACTURER", key)
+        if value:
+            info[key.lower()] = " ".join(str(v) for v in value).strip()
+    return MarkerFile(path=path, format="c3d", names=names, positions=xyz, rate_hz=rate,
+                      # ezc3d counts from 0; the file (and every lab's software) from 1.
+                      first_frame=int(header["points"]["first_frame"]) + 1, units=units, analog=analog, info=info)
+
+
+def write_c3d(path, marker_names, positions, rate_hz, first_frame=1):
+    """Write labelled 3D markers as a C3D file (float storage, millimetres).
+
+    Parameters
+    ----------
+    path : str or path-like
+        Written under a temporary name and renamed when complete.
+    marker_names : sequence of str
+        Labels (``'bucket:alpha'``).
+    positions : ndarray, shape (frames, markers, 3)
+        Positions (m); NaN marks a gap, written with residual -1.
+    rate_hz : float
+    first_frame : int
+        Number of the first frame, counted from 1 as the file stores it.
+    """
+    import ezc3d  # noqa: PLC0415
+
+    path = os.fspath(path)
+    p = np.asarray(positions, dtype=float)
+    names = [str(n) for n in marker_names]
+    if p.ndim != 3 or p.shape[1:] != (len(names), 3):
+        raise ValueError(f"positions must have shape (frames, {len(names)}, 3), got {p.shape}")
+    gap = ~np.isfinite(p).all(axis=-1)
+    c3d = ezc3d.c3d()
+    c3d["parameters"]["POINT"]["RATE"]["value"] = [float(rate_hz)]
+    c3d["parameters"]["POINT"]["LABELS"]["value"] = tuple(names)
+    c3d.add_parameter("POINT", "UNITS", "mm")
+    pts = np.ones((4, len(names), p.shape[0]))
+    pts[:3] = np.transpose(np.where(gap[..., None], np.nan, p * 1e3), (2, 1, 0))
+    c3d["data"]["points"] = pts
+    residuals = np.where(gap.T, -1.0, 0.0)[None]
+    c3d["data"]["meta_points"] = {"residuals": residuals,
+                                  "camera_masks": np.zeros((7, len(names), p.shape[0]), dtype=bool)}
+    c3d["header"]["points"]["first_frame"] = int(first_frame) - 1
+    folder = os.path.dirname(os.path.abspath(path))
+    tmp = os.path.join(folder, f".{os.path.basename(path)}.partial-{os.getpid()}.c3d")
+    try:
+        c3d.write(tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    return path

@@ -1,0 +1,123 @@
+"""Labelled 3D marker files of other labs (C3D, TRC) as one small record.
+
+A VICON-style CSV, a C3D file and a TRC file all hold the same thing for
+this tool: labelled marker positions at a fixed rate. Each reader returns a
+:class:`MarkerFile` in metres with NaN where a marker was not seen, so the
+reconstruction reads every format alike (``reconstruct_marker_file``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["MarkerFile", "METRES_PER_UNIT", "metres_per_unit"]
+
+METRES_PER_UNIT = {"mm": 1e-3, "cm": 1e-2, "dm": 1e-1, "m": 1.0, "millimeters": 1e-3, "meters": 1.0}
+# A day at 10 kHz: beyond, a frame index is nonsense (and an int64 product overflows).
+MAX_FRAMES = 10**9
+
+
+def metres_per_unit(unit, where):
+    """Scale from a file's length unit to metres; one-line ValueError naming ``where`` otherwise."""
+    key = (unit or "").strip().lower()
+    if key not in METRES_PER_UNIT:
+        raise ValueError(f"{where}: length unit '{unit}' is not one of mm, cm, dm, m")
+    return METRES_PER_UNIT[key]
+
+
+@dataclass(eq=False)
+class MarkerFile:
+    """Labelled marker trajectories read from a file.
+
+    Attributes
+    ----------
+    path : str
+    format : str
+        ``"c3d"`` or ``"trc"``.
+    names : list of str
+        Marker labels as in the file (``'bucket:alpha'``, ``'RHip'``).
+    positions : ndarray, shape (frames, markers, 3)
+        Positions (m); NaN in all three where the marker was not seen.
+    rate_hz : float
+        Frame rate (Hz).
+    first_frame : int
+        Number of the first frame in the file's own counting.
+    units : str
+        The file's length unit, as written.
+    analog : dict
+        ``channels`` (labels), ``rate_hz``, ``units``, ``frames`` of the
+        analog data the file also holds (empty lists and 0 if none).
+    info : dict
+        Anything else worth showing (manufacturer, software, header fields).
+    """
+
+    path: str
+    format: str
+    names: list
+    positions: np.ndarray
+    rate_hz: float
+    first_frame: int = 1
+    units: str = "mm"
+    analog: dict = field(default_factory=lambda: {"channels": [], "rate_hz": 0.0, "units": [], "frames": 0})
+    info: dict = field(default_factory=dict)
+
+    @property
+    def frames(self):
+        return int(self.positions.shape[0])
+
+    def summary(self):
+        """JSON-able description: rate, frames, markers with their seen fraction, analog channels."""
+        seen = np.isfinite(self.positions).all(axis=-1)
+        return {"path": self.path, "format": self.format, "rate_hz": self.rate_hz, "frames": self.frames,
+                "first_frame": self.first_frame, "duration_s": self.frames / self.rate_hz if self.rate_hz else None,
+                "units": self.units, "markers": list(self.names),
+                "seen_fraction": {n: float(seen[:, k].mean()) if self.frames else 0.0
+                                  for k, n in enumerate(self.names)},
+                "analog": dict(self.analog), "info": dict(self.info)}
+
+
+MARKER_FILE_EXTENSIONS = (".csv", ".c3d", ".trc")
+
+
+def read_marker_file(path):
+    """Labelled 3D markers from a VICON-style CSV, a C3D or a TRC file (by extension).
+
+    Frame numbers the file skips become frames with every marker unseen, so
+    row ``i`` of ``positions`` is always frame ``first_frame + i``.
+
+    Returns
+    -------
+    MarkerFile
+
+    Raises
+    ------
+    ValueError
+        One line starting with the path, as the format's reader words it.
+    """
+    import os
+
+    path = os.fspath(path)
+    ext = os.path.splitext(path)[1].lower()
+    if ext == ".c3d":
+        from ._c3d import read_c3d
+
+        return read_c3d(path)
+    if ext == ".trc":
+        from ._trc import read_trc
+
+        return read_trc(path)
+    from ._vicon_csv import marker_trajectories, read_vicon_csv
+
+    export = read_vicon_csv(path)
+    names, positions = marker_trajectories(export)
+    frame = export.trajectories.frame
+    if frame.size == 0:
+        raise ValueError(f"{path}: the Trajectories section has no frames")
+    if np.any(np.diff(frame) <= 0):
+        raise ValueError(f"{path}: frame numbers are not increasing")
+    full = np.full((int(frame[-1] - frame[0]) + 1,) + positions.shape[1:], np.nan)
+    full[frame - frame[0]] = positions
+    return MarkerFile(path=path, format="vicon_csv", names=names, positions=full,
+                      rate_hz=float(export.trajectories.rate_hz), first_frame=int(frame[0]))
