@@ -2,7 +2,7 @@
 
 Each case takes one valid input (the sample session, its maneuver, the
 built-in rig file, a run config, a cameras.json, a trajectory table, a
-VICON CSV or a command-line option), breaks it one way, and runs a command
+VICON CSV, a C3D or TRC file, or a command-line option), breaks it one way, and runs a command
 that reads it in a forked child with a wall-clock limit and a 4 GiB address
 space limit. What comes out is sorted into:
 
@@ -77,6 +77,8 @@ def build_seeds(folder):
     from importlib import resources
 
     from dragline.capture import write_vicon_csv
+    from dragline.capture._c3d import write_c3d
+    from dragline.capture._trc import write_trc
     from dragline.pipelines.cli import main
     from dragline.simulate import marker_positions, simulate, write_trajectory_csv
 
@@ -99,6 +101,8 @@ def build_seeds(folder):
     write_trajectory_csv(folder / "simulated.csv", run.table)
     names, points = marker_positions(run)
     write_vicon_csv(folder / "vicon.csv", [n.replace(".", ":", 1) for n in names], points * 1000.0, 50.0)
+    write_c3d(folder / "markers.c3d", [n.replace(".", ":", 1) for n in names], points, 50.0)
+    write_trc(folder / "markers.trc", [n.replace(".", ":", 1) for n in names], points, 50.0)
     return folder
 
 
@@ -173,8 +177,8 @@ def mutate_document(doc, rng, strict_keys):
     return doc, f"{where} = {bad!r} ({name})", nonsense
 
 
-def mutate_csv(text, rng, data_start):
-    """One broken copy of a CSV: (text, what, nonsense)."""
+def mutate_csv(text, rng, data_start, sep=","):
+    """One broken copy of a CSV (or a TRC, ``sep`` a tab): (text, what, nonsense)."""
     lines = text.splitlines()
     rows = list(range(data_start, len(lines)))
     kind = rng.random()
@@ -193,19 +197,19 @@ def mutate_csv(text, rng, data_start):
         return "", "empty file", True
     if kind < 0.3 and data_start > 0:
         i = rng.randrange(0, data_start)
-        cells = lines[i].split(",")
+        cells = lines[i].split(sep)
         j = rng.randrange(len(cells))
         cells[j] = "zzz"
-        lines[i] = ",".join(cells)
+        lines[i] = sep.join(cells)
         return "\n".join(lines) + "\n", f"header line {i + 1} cell {j + 1} = 'zzz'", False
     i = rng.choice(rows)
-    cells = lines[i].split(",")
+    cells = lines[i].split(sep)
     j = rng.randrange(len(cells))
     name, bad, nonsense = rng.choice([("text", "abc", True), ("nan", "nan", False), ("empty", "", False),
                                       ("inf", "inf", True), ("minus_huge", "-1e308", False),
                                       ("huge", "1e300", False), ("negative", "-1", False)])
     cells[j] = bad
-    lines[i] = ",".join(cells)
+    lines[i] = sep.join(cells)
     return "\n".join(lines) + "\n", f"line {i + 1} cell {j + 1} = {bad!r} ({name})", nonsense
 
 
@@ -345,7 +349,7 @@ def make_case(k, rng, seed, work):
                            ["diagnose", str(path), "--json", str(out / "d.json"), "--candidates", "aero_drag",
                             "--quiet"]])
         return argv, path.name, what, nonsense
-    if pick < 0.88:  # VICON CSV
+    if pick < 0.85:  # VICON CSV
         text = (seed / "vicon.csv").read_text()
         start = next(i for i, line in enumerate(text.splitlines()) if line[:1].isdigit())
         text, what, nonsense = mutate_csv(text, rng, start)
@@ -354,7 +358,19 @@ def make_case(k, rng, seed, work):
         argv = rng.choice([["reconstruct", str(path), "--out", str(out / "m.csv"), "--quiet"],
                            ["inspect", "--json", str(path)]])
         return argv, path.name, what, nonsense
-    if pick < 0.96:  # a numeric option
+    if pick < 0.91:  # C3D (bytes) or TRC (cells) of the same markers
+        if pick < 0.88:
+            data, what, nonsense = mutate_bytes((seed / "markers.c3d").read_bytes(), rng)
+            path = work / "markers.c3d"
+            path.write_bytes(data)
+        else:
+            text, what, nonsense = mutate_csv((seed / "markers.trc").read_text(), rng, 6, sep="\t")
+            path = work / "markers.trc"
+            path.write_text(text)
+        argv = rng.choice([["reconstruct", str(path), "--out", str(out / "m.csv"), "--quiet"],
+                           ["inspect", "--json", str(path)]])
+        return argv, path.name, what, nonsense
+    if pick < 0.97:  # a numeric option
         command, option, base = rng.choice(OPTIONS)
         value, nonsense = rng.choice(OPTION_VALUES)
         if option in ("--max-gap", "--dropout", "--noise-px", "--max-offset", "--outlier-mm") and value == "0":
