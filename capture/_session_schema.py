@@ -58,9 +58,10 @@ class SessionInfo(_Strict):
     wand_rate_hz: Optional[float] = Field(None, gt=0, le=MAX_RATE_HZ, allow_inf_nan=False, description="Hz")
     wand_length: Optional[float] = Field(None, gt=0, le=100.0, allow_inf_nan=False,
                                         description="distance between the wand's two markers (m)")
-    lframe_points: Optional[list[Annotated[list[Annotated[float, Field(allow_inf_nan=False)]],
+    lframe_points: Optional[list[Annotated[list[Annotated[float, Field(ge=-1000.0, le=1000.0,
+                                                                       allow_inf_nan=False)]],
                                            Field(min_length=3, max_length=3)]]] = Field(
-        None, min_length=4, max_length=4, description="four L-frame marker positions (m)")
+        None, min_length=4, max_length=4, description="four L-frame marker positions (m), each coordinate within 1000 m")
     maneuver: dict[str, list[Optional[float]]] = Field(default_factory=dict,
                                                        description="reel table columns (s, m); null is NaN")
     metadata: dict[str, Any] = Field(default_factory=dict, description="the lab's own notes")

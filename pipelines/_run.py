@@ -193,10 +193,15 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
             csv = Path(path).parent / "maneuver.csv"
             maneuver = read_maneuver_csv(csv) if csv.exists() else _maneuver_of(session)
     if session is not None:
-        cameras, quality = stage(
-            "calibrate the cameras", calibrate, session.lframe, session.wand, session.wand_length,
-            session.lframe_points, session.image_size, session.nominal_focal_px, names=session.camera_names,
-        )
+        try:
+            cameras, quality = stage(
+                "calibrate the cameras", calibrate, session.lframe, session.wand, session.wand_length,
+                session.lframe_points, session.image_size, session.nominal_focal_px, names=session.camera_names,
+            )
+        except ValueError as exc:  # the user's session: name its file, as calibrate does
+            if source is None:
+                raise
+            raise ValueError(f"{path}: {exc}") from None
         save_cameras(tmp / "cameras.json", cameras, quality)
         files["cameras"] = str(tmp / "cameras.json")
         measured, names, points, _ = stage("reconstruct", reconstruct_session, session, cameras, rig, **options)
