@@ -67,8 +67,9 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
     3. The best significant candidate at either end of its plausible
        range, or at the end of what could be simulated: "unexplained" (the
        effect is larger, or other, than that mechanism could plausibly give).
-    4. The runner-up significant too, and the two held-out improvements
-       closer than the threshold: "unexplained" (indistinguishable).
+    4. The runner-up significant too, inside its range, and the two
+       held-out improvements closer than the threshold: "unexplained"
+       (indistinguishable). A runner-up at an end of its range is no rival.
     4b. The best candidate's signature correlates with a rig parameter's
        sensitivity beyond ``CONFOUNDED``: "unexplained" (it cannot be told
        apart from a parameter change within tolerance).
@@ -112,10 +113,16 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
         return "unexplained", (f"{best['name']} improves the fit only at the {where_} "
                                f"({best['main_parameter']} = {best['parameters'][best['main_parameter']]:.3g}); "
                                "the mismatch is not what it can plausibly explain")
-    if len(sig) > 1 and best["improvement"] - sig[1]["improvement"] < threshold:
-        return "unexplained", (f"{best['name']} and {sig[1]['name']} explain the mismatch about equally well "
-                               f"(held-out improvements {best['improvement']:.1f} and {sig[1]['improvement']:.1f}, "
-                               f"closer than the noise threshold {threshold:.1f}); the data cannot tell them apart")
+    # A rival at an end of its range is no alternative: it could not be named
+    # itself (rule 3), and its improvement there is mostly the joint refit's
+    # parameters (a hidden sheave inertia's rival, chain-link friction, sat
+    # at its lower end within the noise threshold of the right one).
+    rivals = [h for h in sig[1:] if not h["at_bound"]]
+    if rivals and best["improvement"] - rivals[0]["improvement"] < threshold:
+        return "unexplained", (f"{best['name']} and {rivals[0]['name']} explain the mismatch about equally well "
+                               f"(held-out improvements {best['improvement']:.1f} and "
+                               f"{rivals[0]['improvement']:.1f}, closer than the noise threshold {threshold:.1f}); "
+                               "the data cannot tell them apart")
     confounded = [e for e in best.get("nuisance_correlation") or () if abs(e["correlation"]) > CONFOUNDED]
     if confounded:
         e = confounded[0]
