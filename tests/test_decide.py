@@ -58,6 +58,20 @@ def test_a_candidate_at_the_bound_of_its_range_is_not_named():
     assert verdict == "unexplained" and "lower end" in reason
 
 
+def test_two_candidates_within_the_threshold_cannot_be_told_apart_unless_one_sits_at_a_bound():
+    # The improvements of case 503 of the realistic benchmark, scaled to THRESHOLD: 2.87 and 2.49.
+    best = _hypothesis("pulley_inertia", 287.0, 2.9, 1.3)
+    rival = _hypothesis("chain_link_friction", 249.0, 2.9, 1.4)
+    verdict, reason = decide([best, rival], THRESHOLD, [], [])
+    assert verdict == "unexplained" and "about equally well" in reason
+    # The same rival at the lower end of its range could not be named: it is no alternative.
+    verdict, reason = decide([best, dict(rival, at_bound="lower")], THRESHOLD, [], [])
+    assert verdict == "pulley_inertia" and "runner-up chain_link_friction" in reason
+    # Farther apart than the threshold, the best is named with a rival inside its range too.
+    verdict, _ = decide([dict(best, improvement=360.0), rival], THRESHOLD, [], [])
+    assert verdict == "pulley_inertia"
+
+
 def test_a_joint_refit_searches_within_the_candidates_range():
     lo, hi = joint_value_bounds(0.012, (0.01, 1.0))
     assert lo == pytest.approx(math.log(0.01)) and hi == pytest.approx(math.log(0.012) + JOINT_SPAN)
