@@ -120,7 +120,9 @@ def read_trc(path):
         if len(cells) > width:
             _fail(path, lineno, f"{len(cells)} cells, more than Frame#, Time and {n_markers} markers x 3")
         frame = _number(path, lineno, cells[0], "frame number")
-        if not (frame == int(frame) and 0 <= frame <= MAX_FRAMES):
+        if len(cells) > 1 and cells[1].strip() and not math.isfinite(_number(path, lineno, cells[1], "time")):
+            _fail(path, lineno, f"time '{cells[1]}' is not a finite number")
+        if not (math.isfinite(frame) and frame == int(frame) and 0 <= frame <= MAX_FRAMES):
             _fail(path, lineno, f"frame number '{cells[0]}' is not a whole number from 0 to {MAX_FRAMES:.0e}")
         if frames and frame <= frames[-1]:
             _fail(path, lineno, f"frame number {int(frame)} does not follow {frames[-1]}")

@@ -189,6 +189,8 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
         session, report = read_session(path)
         if session.wand is None or session.lframe is None:
             raise ValueError(f"{path}: no calibration takes (wand and L-frame) to calibrate the cameras from")
+        if session.wand_length is None or session.lframe_points is None:
+            raise ValueError(f"{path}: the session lacks the wand length or the L-frame marker positions")
         if maneuver is None:
             csv = Path(path).parent / "maneuver.csv"
             maneuver = read_maneuver_csv(csv) if csv.exists() else _maneuver_of(session)
@@ -204,7 +206,13 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
             raise ValueError(f"{path}: {exc}") from None
         save_cameras(tmp / "cameras.json", cameras, quality)
         files["cameras"] = str(tmp / "cameras.json")
-        measured, names, points, _ = stage("reconstruct", reconstruct_session, session, cameras, rig, **options)
+        try:
+            measured, names, points, _ = stage("reconstruct", reconstruct_session, session, cameras, rig,
+                                               **options)
+        except ValueError as exc:  # the session's markers: name its file, as reconstruct does
+            if source is None:
+                raise
+            raise ValueError(f"{path}: {exc}") from None
     write_trajectory_csv(tmp / "measured.csv", measured)
     files["measured"] = str(tmp / "measured.csv")
 

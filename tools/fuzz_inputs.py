@@ -351,7 +351,9 @@ def make_case(k, rng, seed, work):
         return argv, path.name, what, nonsense
     if pick < 0.85:  # VICON CSV
         text = (seed / "vicon.csv").read_text()
-        start = next(i for i, line in enumerate(text.splitlines()) if line[:1].isdigit())
+        # Data rows follow the Frame line and the units line (the rate line is a number too).
+        lines = text.splitlines()
+        start = next(i for i, line in enumerate(lines) if line.startswith("Frame")) + 2
         text, what, nonsense = mutate_csv(text, rng, start)
         path = work / "vicon.csv"
         path.write_text(text)
