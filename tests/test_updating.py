@@ -17,7 +17,7 @@ import pytest
 
 from dragline.compare.diagnose._hypotheses import Problem, channels_on
 from dragline.compare.diagnose._locate import DYNAMIC_CHANNELS
-from dragline.compare.diagnose._updating import model_error, nuisance_correlation, update_model
+from dragline.compare.diagnose._updating import model_error, nuisance_correlation, parameter_span_share, update_model
 from dragline.simulate import apply_parameters, dig_maneuver, parse_physics, simulate
 
 KEPT = ("reels.hoist.zero", "fixed_points.boom_pulley.z", "bodies.bucket.cg_x", "ropes.chain.viscous_damping")
@@ -108,6 +108,21 @@ def test_a_mechanism_signature_is_compared_with_every_parameter(updated):
     # A parameter's own sensitivity is perfectly correlated with itself.
     own = nuisance_correlation(updated["problem"], result["sensitivities"][0], result, most=1)[0]
     assert own["parameter"] == updated["params"][0].name and own["correlation"] == pytest.approx(1.0)
+
+
+def test_the_share_a_parameter_change_reproduces_is_one_for_a_mix_of_sensitivities(updated):
+    problem, result = updated["problem"], updated["result"]
+    sens = result["sensitivities"]
+    # Any mix of the parameters' sensitivities is a parameter change: share 1,
+    # although no single parameter's cosine need be near 1.
+    mix = 0.7 * sens[0] - 1.3 * sens[-1]
+    assert parameter_span_share(problem, mix, result) == pytest.approx(1.0, abs=1e-9)
+    # Noise the parameters cannot make: a small share; half of each: in between.
+    noise = np.random.default_rng(0).normal(size=mix.shape) * np.abs(mix).max()
+    low = parameter_span_share(problem, noise, result)
+    assert low < 0.1
+    assert low < parameter_span_share(problem, mix + 0.5 * noise, result) < 1.0
+    assert parameter_span_share(problem, np.zeros_like(mix), result) == 0.0
 
 
 def _read_as_recorded(rig, coords_by_name, channels, duration=3.0):
