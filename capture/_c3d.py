@@ -60,6 +60,41 @@ def _labels(params, n):
     return labels
 
 
+def _parse(path):
+    """What ``read_c3d`` needs of a C3D file, as plain picklable data (runs in a child process)."""
+    import ezc3d  # noqa: PLC0415 - only C3D input needs it
+
+    c3d = ezc3d.c3d(path, extract_forceplat_data=False)
+    params = {group: {name: c3d["parameters"][group][name] for name in c3d["parameters"][group]
+                      if name != "__METADATA__"}
+              for group in ("POINT", "ANALOG", "MANUFACTURER") if group in c3d["parameters"]}
+    data = {"points": np.asarray(c3d["data"]["points"]),
+            "meta_points": {"residuals": np.asarray(c3d["data"].get("meta_points", {}).get(
+                "residuals", np.zeros((1, 0, 0))))},
+            "analogs": np.zeros((1,) + np.asarray(c3d["data"]["analogs"]).shape[1:2] + (0,)),
+            "analog_frames": int(np.asarray(c3d["data"]["analogs"]).shape[2])}
+    header = {"points": dict(c3d["header"]["points"])}
+    return params, data, header
+
+
+def _parse_isolated(path):
+    """``_parse`` in a forked child: ezc3d is C++, and some damaged files crash it (a segmentation
+    fault found by the byte-level property tests) - that must end in a one-line error, not kill the
+    command."""
+    import multiprocessing  # noqa: PLC0415
+    from concurrent.futures import ProcessPoolExecutor  # noqa: PLC0415
+    from concurrent.futures.process import BrokenProcessPool  # noqa: PLC0415
+
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+    try:
+        with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context(method)) as pool:
+            return pool.submit(_parse, path).result()
+    except BrokenProcessPool:
+        raise ValueError(f"{path}: unreadable C3D file (the C3D library crashed on its bytes)") from None
+    except Exception as exc:  # noqa: BLE001 - the library raises RuntimeError, IndexError, ... on bad bytes
+        raise ValueError(f"{path}: unreadable C3D file ({' '.join(str(exc).split())[:120]})") from None
+
+
 def read_c3d(path):
     """Read the 3D points of a C3D file.
 
@@ -79,16 +114,10 @@ def read_c3d(path):
         One line starting with the path: not a C3D file, unreadable, no 3D
         points, a bad rate or unit, duplicate labels.
     """
-    import ezc3d  # noqa: PLC0415 - only C3D input needs it
-
     path = os.fspath(path)
     if not is_c3d(path):
         raise ValueError(f"{path}: not a C3D file (no C3D header)")
-    try:
-        c3d = ezc3d.c3d(path, extract_forceplat_data=False)
-    except Exception as exc:  # noqa: BLE001 - the library raises RuntimeError, IndexError, ... on bad bytes
-        raise ValueError(f"{path}: unreadable C3D file ({' '.join(str(exc).split())[:120]})") from None
-    params, data, header = c3d["parameters"], c3d["data"], c3d["header"]
+    params, data, header = _parse_isolated(path)
     points = np.asarray(data["points"], dtype=float)
     n_points = points.shape[1] if points.ndim == 3 else 0
     if n_points == 0:
@@ -114,11 +143,11 @@ def read_c3d(path):
         gap |= residuals[0].T < 0
     xyz[gap] = np.nan
     analog_labels = [str(x).strip() for x in (_param(params, "ANALOG", "LABELS") or [])]
-    analogs = np.asarray(data.get("analogs", np.zeros((1, 0, 0))))
-    analog = {"channels": analog_labels[: analogs.shape[1]] if analogs.ndim == 3 else [],
+    analogs = data["analogs"]
+    analog = {"channels": analog_labels[: analogs.shape[1]],
               "rate_hz": float((_param(params, "ANALOG", "RATE") or [0.0])[0]),
               "units": [str(u).strip() for u in (_param(params, "ANALOG", "UNITS") or [])][: len(analog_labels)],
-              "frames": int(analogs.shape[2]) if analogs.ndim == 3 else 0}
+              "frames": data["analog_frames"]}
     info = {}
     for key in ("COMPANY", "SOFTWARE", "VERSION_LABEL"):
         value = _param(params, "MANUFACTURER", key)
