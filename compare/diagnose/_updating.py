@@ -631,23 +631,23 @@ def nuisance_correlation(problem, signature, update, most=3):
         removed: ``parameter``, ``correlation``. 1 means the recording
         cannot tell the mechanism from that parameter change.
     """
-    W = problem.W
-    sw = np.maximum(W.sum(0), 1e-300)
-
-    def centred(x):
-        x = np.where(problem.valid, x, 0.0)
-        return (x - (W * x).sum(0) / sw) * np.sqrt(W)
-
-    g = centred(signature)
+    g = _centred(problem, signature)
     gn = math.sqrt(float((g * g).sum()))
     out = []
     for p, s in zip(update["block"]["parameters"], update["sensitivities"]):
-        j = centred(s)
+        j = _centred(problem, s)
         jn = math.sqrt(float((j * j).sum()))
         if gn > 0 and jn > 0:
             out.append({"parameter": p["parameter"], "correlation": float((g * j).sum()) / (gn * jn)})
     out.sort(key=lambda e: -abs(e["correlation"]))
     return out[:most]
+
+
+def _centred(problem, x):
+    """``x`` (n, c) in the chi2 metric with each channel's weighted mean (its offset) removed."""
+    W = problem.W
+    x = np.where(problem.valid, x, 0.0)
+    return (x - (W * x).sum(0) / np.maximum(W.sum(0), 1e-300)) * np.sqrt(W)
 
 
 def parameter_span_share(problem, signature, update):
@@ -673,18 +673,11 @@ def parameter_span_share(problem, signature, update):
     float
         In [0, 1]; 0 when the signature or every sensitivity is zero.
     """
-    W = problem.W
-    sw = np.maximum(W.sum(0), 1e-300)
-
-    def centred(x):
-        x = np.where(problem.valid, x, 0.0)
-        return ((x - (W * x).sum(0) / sw) * np.sqrt(W)).ravel()
-
-    g = centred(signature)
+    g = _centred(problem, signature).ravel()
     gg = float(g @ g)
     if gg == 0.0 or not update["sensitivities"]:
         return 0.0
-    J = np.column_stack([centred(s) for s in update["sensitivities"]])
+    J = np.column_stack([_centred(problem, s).ravel() for s in update["sensitivities"]])
     coef, *_ = np.linalg.lstsq(J, g, rcond=1e-10)
     fitted = J @ coef
     return float(min(1.0, max(0.0, (fitted @ fitted) / gg)))
