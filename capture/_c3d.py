@@ -71,7 +71,7 @@ def _parse(path):
     data = {"points": np.asarray(c3d["data"]["points"]),
             "meta_points": {"residuals": np.asarray(c3d["data"].get("meta_points", {}).get(
                 "residuals", np.zeros((1, 0, 0))))},
-            "analogs": np.zeros((1,) + np.asarray(c3d["data"]["analogs"]).shape[1:2] + (0,)),
+            "analog_channels": int(np.asarray(c3d["data"]["analogs"]).shape[1]),
             "analog_frames": int(np.asarray(c3d["data"]["analogs"]).shape[2])}
     header = {"points": dict(c3d["header"]["points"])}
     return params, data, header
@@ -143,8 +143,7 @@ def read_c3d(path):
         gap |= residuals[0].T < 0
     xyz[gap] = np.nan
     analog_labels = [str(x).strip() for x in (_param(params, "ANALOG", "LABELS") or [])]
-    analogs = data["analogs"]
-    analog = {"channels": analog_labels[: analogs.shape[1]],
+    analog = {"channels": analog_labels[: data["analog_channels"]],
               "rate_hz": float((_param(params, "ANALOG", "RATE") or [0.0])[0]),
               "units": [str(u).strip() for u in (_param(params, "ANALOG", "UNITS") or [])][: len(analog_labels)],
               "frames": data["analog_frames"]}
