@@ -77,22 +77,68 @@ def _parse(path):
     return params, data, header
 
 
-def _parse_isolated(path):
-    """``_parse`` in a forked child: ezc3d is C++, and some damaged files crash it (a segmentation
-    fault found by the byte-level property tests) - that must end in a one-line error, not kill the
-    command."""
-    import multiprocessing  # noqa: PLC0415
-    from concurrent.futures import ProcessPoolExecutor  # noqa: PLC0415
-    from concurrent.futures.process import BrokenProcessPool  # noqa: PLC0415
+# The child's limits: a damaged header can send ezc3d into an endless loop (a byte-level property run
+# found one) or ask it for gigabytes. A real file parses at tens of MB/s, so its own size bounds both.
+_CHILD_SECONDS = 10.0  # plus one second per MB of file
+_CHILD_BYTES = 2 * 2**30  # address space beyond the parent's, plus 64 bytes per byte of file
 
-    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+
+def _child(conn, path, address_space):
+    import resource  # noqa: PLC0415
+
     try:
-        with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context(method)) as pool:
-            return pool.submit(_parse, path).result()
-    except BrokenProcessPool:
-        raise ValueError(f"{path}: unreadable C3D file (the C3D library crashed on its bytes)") from None
-    except Exception as exc:  # noqa: BLE001 - the library raises RuntimeError, IndexError, ... on bad bytes
-        raise ValueError(f"{path}: unreadable C3D file ({' '.join(str(exc).split())[:120]})") from None
+        resource.setrlimit(resource.RLIMIT_AS, (address_space, address_space))
+    except (ValueError, OSError):
+        pass  # a platform without the limit still gets the time limit
+    try:
+        conn.send(("ok", _parse(path)))
+    except BaseException as exc:  # noqa: BLE001 - the library raises RuntimeError, IndexError, MemoryError, ...
+        conn.send(("error", " ".join(f"{type(exc).__name__}: {exc}".split())[:120]))
+    finally:
+        conn.close()
+
+
+def _address_space_now():
+    try:
+        with open("/proc/self/status") as fh:
+            return next(int(line.split()[1]) * 1024 for line in fh if line.startswith("VmSize:"))
+    except (OSError, StopIteration, ValueError):
+        return None
+
+
+def _parse_isolated(path):
+    """``_parse`` in a forked child with a time and memory limit: ezc3d is C++, and some damaged files
+    crash it, loop in it or make it allocate without end - each must end in a one-line error, not kill
+    or hang the command."""
+    import multiprocessing  # noqa: PLC0415
+
+    size = os.path.getsize(path)
+    seconds = _CHILD_SECONDS + size / 1e6
+    now = _address_space_now()
+    address_space = now + _CHILD_BYTES + 64 * size if now else -1
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+    context = multiprocessing.get_context(method)
+    receive, send = context.Pipe(duplex=False)
+    child = context.Process(target=_child, args=(send, path, address_space), daemon=True)
+    child.start()
+    send.close()
+    try:
+        message = receive.recv() if receive.poll(seconds) else None
+    except (EOFError, OSError):
+        message = ("crash", None)
+    finally:
+        receive.close()
+        if child.is_alive():
+            child.kill()
+        child.join()
+    if message is None:
+        raise ValueError(f"{path}: unreadable C3D file (the C3D library was still parsing it after "
+                         f"{seconds:.0f} s; a damaged header?)")
+    if message[0] == "crash":
+        raise ValueError(f"{path}: unreadable C3D file (the C3D library crashed on its bytes)")
+    if message[0] == "error":
+        raise ValueError(f"{path}: unreadable C3D file ({message[1]})")
+    return message[1]
 
 
 def read_c3d(path):

@@ -134,6 +134,21 @@ def test_bad_c3d_files_are_one_line_errors(tmp_path):
         assert "\n" not in str(err.value)
 
 
+def test_a_c3d_that_sends_the_library_into_an_endless_loop_is_refused_in_time(tmp_path, monkeypatch):
+    """Found by a long byte-level property run: with the 8 bytes that open the POINT:RATE parameter
+    record deleted, ezc3d 1.7 parses for ever (checked by hand: still running after minutes). The
+    parse runs in a child with a time limit; here the limit is lowered to keep the test short."""
+    import dragline.capture._c3d as c3d_module
+
+    data = OPTOTRAK.read_bytes()
+    at = data.index(b"RATE\t\x00\x04\x00")
+    (tmp_path / "loops.c3d").write_bytes(data[:at] + data[at + 8:])
+    monkeypatch.setattr(c3d_module, "_CHILD_SECONDS", 2.0)
+    with pytest.raises(ValueError, match=r"loops\.c3d: unreadable C3D file \(the C3D library was still parsing"):
+        read_c3d(tmp_path / "loops.c3d")
+    assert read_c3d(OPTOTRAK).positions.shape == (29, 54, 3)  # the limit leaves a real file alone
+
+
 @pytest.fixture(scope="module")
 def rig_markers(tmp_path_factory):
     """The rig's true markers from a short simulation, written as CSV, C3D and TRC (with one gap)."""
