@@ -84,8 +84,10 @@ _CHILD_BYTES = 2 * 2**30  # address space beyond the parent's, plus 64 bytes per
 
 
 def _child(conn, path, address_space):
+    import faulthandler  # noqa: PLC0415
     import resource  # noqa: PLC0415
 
+    faulthandler.disable()  # a crash here is reported by the parent in one line, not as a stack dump
     try:
         resource.setrlimit(resource.RLIMIT_AS, (address_space, address_space))
     except (ValueError, OSError):

@@ -1,7 +1,7 @@
 """Compiled right-hand side and fixed-step RK4 integrator of the dragline model.
 
 Everything here works on the flat arrays that ``_model.assemble`` builds
-(packed into one tuple, ``m``, in the order of ``_model.KERNEL_FIELDS``).
+(packed into one namedtuple, ``m``, a ``_model.KernelModel``, read by field name).
 
 State vector layout (the offsets ``Model.o_part``, ``o_vel``, ``o_force``, ``o_ring`` in ``_model``):
   bodies    12 each: x y z, vx vy vz (inertial, m, m/s), roll pitch yaw (rad),
@@ -34,6 +34,8 @@ from the ring to the fixed ends), plus any sheave inertia J / r^2.
 """
 
 from __future__ import annotations
+
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -191,40 +193,40 @@ def _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLse
 @njit(cache=True)
 def rhs(t, y, dy, m, work):
     """dy = f(t, y). ``work`` holds scratch arrays (see ``make_work``)."""
-    nb = m[0]
-    body_mass = m[1]
-    body_I = m[2]
-    body_Iinv = m[3]
-    g = m[4]
-    part_seg = m[5]
-    el_seg = m[6]
-    el_ka = m[8]
-    el_ia = m[9]
-    el_ra = m[10]
-    el_kb = m[11]
-    el_ib = m[12]
-    el_rb = m[13]
-    seg_ks = m[14]
-    seg_kv = m[15]
-    seg_relax = m[16]
-    seg_len0 = m[17]
-    seg_reel = m[18]
-    seg_reel_off = m[19]
-    seg_ring = m[20]
-    seg_nel = m[21]
-    seg_nelA = m[22]
-    seg_npart = m[23]
-    seg_rho = m[24]
-    ring_seg = m[25]
-    ring_added_mass = m[26]
-    reel_t = m[27]
-    reel_len = m[28]
-    point_pos = m[29]
-    relax_damping = m[30]
-    body_cda = m[31]
-    seg_cda = m[32]
-    air_density = m[33]
-    ring_visc = m[45]
+    nb = m.nb
+    body_mass = m.body_mass
+    body_I = m.body_I
+    body_Iinv = m.body_Iinv
+    g = m.g
+    part_seg = m.part_seg
+    el_seg = m.el_seg
+    el_ka = m.el_ka
+    el_ia = m.el_ia
+    el_ra = m.el_ra
+    el_kb = m.el_kb
+    el_ib = m.el_ib
+    el_rb = m.el_rb
+    seg_ks = m.seg_ks
+    seg_kv = m.seg_kv
+    seg_relax = m.seg_relax
+    seg_len0 = m.seg_len0
+    seg_reel = m.seg_reel
+    seg_reel_off = m.seg_reel_off
+    seg_ring = m.seg_ring
+    seg_nel = m.seg_nel
+    seg_nelA = m.seg_nelA
+    seg_npart = m.seg_npart
+    seg_rho = m.seg_rho
+    ring_seg = m.ring_seg
+    ring_added_mass = m.ring_added_mass
+    reel_t = m.reel_t
+    reel_len = m.reel_len
+    point_pos = m.point_pos
+    relax_damping = m.relax_damping
+    body_cda = m.body_cda
+    seg_cda = m.seg_cda
+    air_density = m.air_density
+    ring_visc = m.ring_visc
 
     P = part_seg.shape[0]
     E = el_seg.shape[0]
@@ -234,7 +236,9 @@ def rhs(t, y, dy, m, work):
     o_F = o_vel + 3 * P
     o_ring = o_F + E
 
-    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel, trig, inv_mass_seg = work[:14]
+    T, Lseg, dLseg, reel_buf, reel_rate = work.T, work.Lseg, work.dLseg, work.reel_buf, work.reel_rate
+    fb, mb, fp, sumA, sumB, fpos, fvel = work.fb, work.mb, work.fp, work.sumA, work.sumB, work.fpos, work.fvel
+    trig, inv_mass_seg = work.trig, work.inv_mass_seg
 
     _fixed_points(t, reel_t, point_pos, fpos, fvel)
     for b in range(nb):
@@ -246,7 +250,7 @@ def rhs(t, y, dy, m, work):
     sumA[:] = 0.0
     sumB[:] = 0.0
 
-    el_side = m[7]
+    el_side = m.el_side
     for e in range(E):
         s = el_seg[e]
         Le, dLe = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
@@ -343,25 +347,25 @@ def rhs(t, y, dy, m, work):
 @njit(cache=True, inline="always")
 def _offsets(m):
     """Where the particles' positions and velocities, the forces and the rings start in the state."""
-    o_part = 12 * m[0]
-    o_vel = o_part + 3 * m[5].shape[0]
-    o_F = o_vel + 3 * m[5].shape[0]
-    return o_part, o_vel, o_F, o_F + m[6].shape[0]
+    o_part = 12 * m.nb
+    o_vel = o_part + 3 * m.part_seg.shape[0]
+    o_F = o_vel + 3 * m.part_seg.shape[0]
+    return o_part, o_vel, o_F, o_F + m.el_seg.shape[0]
 
 
 @njit(cache=True)
 def project(t, y, m, work):
     """Enforce Eq. 8's slack branch: F_m = 0 where s <= L_e."""
-    nb = m[0]
-    E = m[6].shape[0]
+    nb = m.nb
+    E = m.el_seg.shape[0]
     o_part, o_vel, o_F, o_ring = _offsets(m)
-    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel = work[:12]
-    _fixed_points(t, m[27], m[29], fpos, fvel)
+    T, Lseg, dLseg, reel_buf, reel_rate, fpos, fvel = work.T, work.Lseg, work.dLseg, work.reel_buf, work.reel_rate, work.fpos, work.fvel
+    _fixed_points(t, m.reel_t, m.point_pos, fpos, fvel)
     for b in range(nb):
         _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
-    _segment_lengths(t, m[17], m[18], m[19], m[27], m[28], Lseg, dLseg, reel_buf, reel_rate)
-    el_seg, el_side, el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m[6], m[7], m[8], m[9], m[10], m[11], m[12], m[13]
-    seg_ring, seg_nel, seg_nelA = m[20], m[21], m[22]
+    _segment_lengths(t, m.seg_len0, m.seg_reel, m.seg_reel_off, m.reel_t, m.reel_len, Lseg, dLseg, reel_buf, reel_rate)
+    el_seg, el_side, el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m.el_seg, m.el_side, m.el_ka, m.el_ia, m.el_ra, m.el_kb, m.el_ib, m.el_rb
+    seg_ring, seg_nel, seg_nelA = m.seg_ring, m.seg_nel, m.seg_nelA
     for e in range(E):
         if y[o_F + e] == 0.0:
             continue
@@ -394,25 +398,25 @@ def dissipate(t, y, dt, m, work):
     the RK4 step moves it by about dt^2 a / 2 before friction stops it
     (time constant ~ 2 / (dt omega^2); tests/test_mechanism_signatures.py).
     """
-    has_joints = m[34] != 0
-    has_rings = m[43] != 0
+    has_joints = m.has_joints != 0
+    has_rings = m.has_ring_friction != 0
     if not (has_joints or has_rings):
         return
-    nb = m[0]
-    E = m[6].shape[0]
+    nb = m.nb
+    E = m.el_seg.shape[0]
     o_part, o_vel, o_F, o_ring = _offsets(m)
-    T, Lseg, dLseg, reel_buf, reel_rate, fb, mb, fp, sumA, sumB, fpos, fvel = work[:12]
-    el_u, el_len, el_T, el_arm = work[14:18]
-    el_seg, el_side, el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m[6], m[7], m[8], m[9], m[10], m[11], m[12], m[13]
-    seg_ks, seg_ring, seg_nel, seg_nelA, seg_rho = m[14], m[20], m[21], m[22], m[24]
-    _fixed_points(t, m[27], m[29], fpos, fvel)
+    T, Lseg, dLseg, reel_buf, reel_rate, fpos, fvel = work.T, work.Lseg, work.dLseg, work.reel_buf, work.reel_rate, work.fpos, work.fvel
+    el_u, el_len, el_T, el_arm = work.el_u, work.el_len, work.el_T, work.el_arm
+    el_seg, el_side, el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m.el_seg, m.el_side, m.el_ka, m.el_ia, m.el_ra, m.el_kb, m.el_ib, m.el_rb
+    seg_ks, seg_ring, seg_nel, seg_nelA, seg_rho = m.seg_ks, m.seg_ring, m.seg_nel, m.seg_nelA, m.seg_rho
+    _fixed_points(t, m.reel_t, m.point_pos, fpos, fvel)
     for b in range(nb):
         _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
-    _segment_lengths(t, m[17], m[18], m[19], m[27], m[28], Lseg, dLseg, reel_buf, reel_rate)
+    _segment_lengths(t, m.seg_len0, m.seg_reel, m.seg_reel_off, m.reel_t, m.reel_len, Lseg, dLseg, reel_buf, reel_rate)
     for e in range(E):
         se = el_seg[e]
         rg = seg_ring[se]
-        if m[38][se] == 0.0 and m[39][se] == 0.0 and not (rg >= 0 and m[42][rg] > 0.0):
+        if m.seg_bend_c[se] == 0.0 and m.seg_link_mu[se] == 0.0 and not (rg >= 0 and m.ring_mu[rg] > 0.0):
             continue  # no mechanism acts on this segment
         Le, _ = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
         xa, ya, za, _, _, _, a0, a1, a2 = _node(el_ka[e], el_ia[e], el_ra, e, y, T, fpos, fvel, o_part, o_vel)
@@ -428,7 +432,7 @@ def dissipate(t, y, dt, m, work):
     if has_joints:
         _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o_part, o_vel)
     if has_rings:
-        ring_seg, ring_mu, ring_eA, ring_eB = m[25], m[42], m[40], m[41]
+        ring_seg, ring_mu, ring_eA, ring_eB = m.ring_seg, m.ring_mu, m.ring_eA, m.ring_eB
         for rg in range(ring_seg.shape[0]):
             if ring_mu[rg] == 0.0:
                 continue
@@ -437,7 +441,7 @@ def dissipate(t, y, dt, m, work):
             cosb = el_u[eA, 0] * el_u[eB, 0] + el_u[eA, 1] * el_u[eB, 1] + el_u[eA, 2] * el_u[eB, 2]
             beta = np.arccos(min(1.0, max(-1.0, cosb)))
             limit = min(el_T[eA], el_T[eB]) * (np.exp(ring_mu[rg] * beta) - 1.0)
-            mass = seg_rho[s] * Lseg[s] / 3.0 + m[26][rg]
+            mass = seg_rho[s] * Lseg[s] / 3.0 + m.ring_added_mass[rg]
             i = o_ring + 2 * rg + 1
             vs = y[i]
             if abs(vs) * mass <= limit * dt:
@@ -490,11 +494,11 @@ def _kick(kind, idx, arm0, arm1, arm2, jx, jy, jz, y, part_seg, seg_npart, seg_r
 
 @njit(cache=True)
 def _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o_part, o_vel):
-    joint_a, joint_b, joint_seg = m[35], m[36], m[37]
-    seg_bend_c, seg_link_mu, seg_link_r = m[38], m[39], m[44]
-    el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m[8], m[9], m[10], m[11], m[12], m[13]
-    part_seg, seg_npart, seg_rho = m[5], m[23], m[24]
-    body_mass, body_I, body_Iinv = m[1], m[2], m[3]
+    joint_a, joint_b, joint_seg = m.joint_a, m.joint_b, m.joint_seg
+    seg_bend_c, seg_link_mu, seg_link_r = m.seg_bend_c, m.seg_link_mu, m.seg_link_r
+    el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m.el_ka, m.el_ia, m.el_ra, m.el_kb, m.el_ib, m.el_rb
+    part_seg, seg_npart, seg_rho = m.part_seg, m.seg_npart, m.seg_rho
+    body_mass, body_I, body_Iinv = m.body_mass, m.body_I, m.body_Iinv
     for j in range(joint_b.shape[0]):
         s = joint_seg[j]
         c = seg_bend_c[s]
@@ -567,33 +571,35 @@ def _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o
             _turn(b, -hx, -hy, -hz, y, body_Iinv, T)
 
 
+# Scratch arrays for ``rhs``, ``project`` and ``dissipate``, allocated once per run.
+Work = namedtuple("Work", [
+    "T",  # (nb, 3, 3) body-to-inertial matrices
+    "Lseg", "dLseg",  # (S,) unstretched segment lengths (m) and their rates (m/s)
+    "reel_buf", "reel_rate",  # (reels,) reel lengths and rates
+    "fb", "mb",  # (nb, 3) force (N) and moment (N m) on each body, inertial axes
+    "fp",  # (P, 3) force on each particle (N)
+    "sumA", "sumB",  # (R,) tension sums over each ring's sides
+    "fpos", "fvel",  # (F, 3) fixed points' positions and velocities
+    "trig",  # (nb, 4) per body: sin, cos of roll and yaw
+    "inv_mass_seg",  # (S,) 1 / particle mass per segment
+    "el_u", "el_len", "el_T", "el_arm",  # dissipate: element unit vectors, lengths, tensions, lever arms
+])
+
+
 def make_work(m):
-    """Scratch arrays for ``rhs``, ``project`` and ``dissipate`` (allocated once per run)."""
-    nb = m[0]
-    P = m[5].shape[0]
-    S = m[14].shape[0]
-    R = m[25].shape[0]
-    nreel = m[28].shape[1]
-    return (
-        np.zeros((nb, 3, 3)),
-        np.zeros(S),
-        np.zeros(S),
-        np.zeros(nreel),
-        np.zeros(nreel),
-        np.zeros((nb, 3)),
-        np.zeros((nb, 3)),
-        np.zeros((max(P, 1), 3)),
-        np.zeros(max(R, 1)),
-        np.zeros(max(R, 1)),
-        np.zeros((max(m[29].shape[1], 1), 3)),
-        np.zeros((max(m[29].shape[1], 1), 3)),
-        np.zeros((max(nb, 1), 4)),  # per body: sin, cos of roll and yaw
-        np.zeros(S),  # per segment: 1 / particle mass
-        np.zeros((m[6].shape[0], 3)),  # dissipate: element unit vectors
-        np.zeros(m[6].shape[0]),  # lengths
-        np.zeros(m[6].shape[0]),  # tensions
-        np.zeros((m[6].shape[0], 6)),  # lever arms of both ends
-    )
+    """A ``Work`` for the kernel model ``m``."""
+    nb = m.nb
+    P = m.part_seg.shape[0]
+    S = m.seg_ks.shape[0]
+    R = m.ring_seg.shape[0]
+    E = m.el_seg.shape[0]
+    F = max(m.point_pos.shape[1], 1)
+    nreel = m.reel_len.shape[1]
+    return Work(T=np.zeros((nb, 3, 3)), Lseg=np.zeros(S), dLseg=np.zeros(S), reel_buf=np.zeros(nreel),
+                reel_rate=np.zeros(nreel), fb=np.zeros((nb, 3)), mb=np.zeros((nb, 3)), fp=np.zeros((max(P, 1), 3)),
+                sumA=np.zeros(max(R, 1)), sumB=np.zeros(max(R, 1)), fpos=np.zeros((F, 3)), fvel=np.zeros((F, 3)),
+                trig=np.zeros((max(nb, 1), 4)), inv_mass_seg=np.zeros(S), el_u=np.zeros((E, 3)), el_len=np.zeros(E),
+                el_T=np.zeros(E), el_arm=np.zeros((E, 6)))
 
 
 @njit(cache=True, inline="always")
@@ -662,8 +668,8 @@ def integrate(y0, t0, dt, n_steps, record_every, m, work, max_speed):
     y = y0.copy()
     k1, k2, k3, k4, tmp = rk4_scratch(n)
     records[0] = y
-    nb = m[0]
-    P = m[5].shape[0]
+    nb = m.nb
+    P = m.part_seg.shape[0]
     for step in range(n_steps):
         rk4_step(t0 + step * dt, dt, y, k1, k2, k3, k4, tmp, m, work)
         if (step + 1) % record_every == 0:

@@ -20,7 +20,7 @@ import numpy as np
 
 from . import _kernel
 from ._kernel import KIND_PARTICLE
-from ._model import KERNEL_FIELDS, rough_body_positions
+from ._model import kernel_model, rough_body_positions
 from ._time_step import stable_time_step
 
 __all__ = ["Equilibrium", "StaticsError", "solve_statics"]
@@ -52,13 +52,13 @@ class Equilibrium:
 
 
 def _frozen(model, t):
-    """Kernel tuple with the reels held at their lengths at time t."""
+    """The model's arrays with the reels held at their lengths at time t."""
     a = dict(model.arrays)
     h, d = model.maneuver.lengths_at(t)
     a["reel_t"] = np.array([0.0])
     a["reel_len"] = np.array([[float(h), float(d)]])
     a["point_pos"] = model.fixed_positions(t)
-    return a, KERNEL_FIELDS
+    return a
 
 
 def initial_state(model, t=0.0, pitch_guess=0.0):
@@ -131,9 +131,9 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     StaticsError
         When no equilibrium is found (the rig cannot hang at these lengths).
     """
-    arrays, fields = _frozen(model, t)
+    arrays = _frozen(model, t)
     arrays["relax_damping"] = float(damping)
-    m = tuple(arrays[k] for k in fields)
+    m = kernel_model(arrays)
     work = _kernel.make_work(m)
     y = initial_state(model, t) if y0 is None else np.array(y0, float)
     dt = stable_time_step(model, state=y, t=t)
@@ -157,7 +157,7 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
         y[12 * b + 6 : 12 * b + 9] = np.angle(np.exp(1j * y[12 * b + 6 : 12 * b + 9]))
 
     arrays["relax_damping"] = 0.0
-    m = tuple(arrays[k] for k in fields)
+    m = kernel_model(arrays)
     unknown = _unknown_index(model)
     rows = _accel_index(model)
     scale = _residual_scale(model)

@@ -55,11 +55,11 @@ def gershgorin_lambda(rest, L, m):
     m : tuple
         The model's kernel tuple.
     """
-    nb, body_mass, body_I = m[0], m[1], m[2]
-    part_seg, el_seg, el_side = m[5], m[6], m[7]
-    el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m[8], m[9], m[10], m[11], m[12], m[13]
-    seg_ks, seg_kv, seg_ring, seg_npart, seg_rho = m[14], m[15], m[20], m[23], m[24]
-    ring_seg, ring_added_mass = m[25], m[26]
+    nb, body_mass, body_I = m.nb, m.body_mass, m.body_I
+    part_seg, el_seg, el_side = m.part_seg, m.el_seg, m.el_side
+    el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m.el_ka, m.el_ia, m.el_ra, m.el_kb, m.el_ib, m.el_rb
+    seg_ks, seg_kv, seg_ring, seg_npart, seg_rho = m.seg_ks, m.seg_kv, m.seg_ring, m.seg_npart, m.seg_rho
+    ring_seg, ring_added_mass = m.ring_seg, m.ring_added_mass
     P = part_seg.shape[0]
     R = ring_seg.shape[0]
     k_part = np.zeros(P)
@@ -103,14 +103,14 @@ def gershgorin_lambda(rest, L, m):
 @njit(cache=True)
 def state_gershgorin_lambda(t, y, m, work):
     """``gershgorin_lambda`` of the rig as it is at (t, y)."""
-    el_seg, el_side = m[6], m[7]
-    seg_len0, seg_reel, seg_reel_off = m[17], m[18], m[19]
-    seg_ring, seg_nel, seg_nelA = m[20], m[21], m[22]
-    reel_t, reel_len = m[27], m[28]
-    Lseg, dLseg, reel_buf, reel_rate = work[1], work[2], work[3], work[4]
+    el_seg, el_side = m.el_seg, m.el_side
+    seg_len0, seg_reel, seg_reel_off = m.seg_len0, m.seg_reel, m.seg_reel_off
+    seg_ring, seg_nel, seg_nelA = m.seg_ring, m.seg_nel, m.seg_nelA
+    reel_t, reel_len = m.reel_t, m.reel_len
+    Lseg, dLseg, reel_buf, reel_rate = work.Lseg, work.dLseg, work.reel_buf, work.reel_rate
     _segment_lengths(t, seg_len0, seg_reel, seg_reel_off, reel_t, reel_len, Lseg, dLseg, reel_buf, reel_rate)
-    nb = m[0]
-    P = m[5].shape[0]
+    nb = m.nb
+    P = m.part_seg.shape[0]
     E = el_seg.shape[0]
     o_ring = 12 * nb + 6 * P + E
     rest = np.empty(E)
@@ -150,8 +150,8 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
     y = y0.copy()
     k1, k2, k3, k4, tmp = rk4_scratch(n)
     records[0] = y
-    nb = m[0]
-    P = m[5].shape[0]
+    nb = m.nb
+    P = m.part_seg.shape[0]
     total = 0
     for rec in range(n_records):
         t_rec = t0 + rec * out_dt
