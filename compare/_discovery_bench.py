@@ -80,7 +80,7 @@ def default_cases(quick=False, seed=0):
         entry = MECHANISMS[name]
         values = MAGNITUDES.get(name)
         if values is None:
-            lo, hi = entry.get("range") or (entry["defaults"][entry["main"]] / 10, entry["defaults"][entry["main"]] * 3)
+            lo, hi = entry["range"]
             values = tuple(float(v) for v in np.geomspace(lo, hi, 4))
         if quick:
             values = (values[0], values[2])

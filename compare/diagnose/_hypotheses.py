@@ -18,7 +18,7 @@ noise level), bounded by ``MAX_SHIFT``.
 Fitting
 -------
 Each candidate's main parameter ``p`` is searched on ``ln p`` over its
-plausible range (``MECHANISMS[name]["range"]``, else ``RANGES``): a grid of
+plausible range (``MECHANISMS[name]["range"]``): a grid of
 ``N_GRID`` values (step 2's signature ranking: how well the best grid value
 reduces the mismatch), then, for candidates that reduce it at all, a
 bounded Brent search in the grid cell around the best value. The nominal
@@ -78,21 +78,12 @@ from ...simulate import (
 )
 
 __all__ = [
-    "RANGES",
     "candidate_list",
     "Problem",
     "fit_candidates",
     "null_threshold",
 ]
 
-# Plausible ranges of the main parameters, used when the registry gives none.
-RANGES = {
-    "chain_link_friction": (0.02, 1.0),
-    "pulley_friction": (0.01, 0.5),
-    "pulley_inertia": (1e-6, 1e-2),
-    "rope_bending_damping": (1e-4, 1.0),
-    "aero_drag": (0.1, 20.0),
-}
 DECAY_WEIGHT = 2.0
 MAX_SHIFT = 0.01  # s
 BLOCK_S = 0.5
@@ -144,7 +135,7 @@ def candidate_list(names=None):
             raise ValueError(f"unknown mechanism {name!r} (choose from {', '.join(sorted(MECHANISMS))})")
         entry = MECHANISMS[name]
         main = entry["main"]
-        lo, hi = entry.get("range") or RANGES.get(name) or (entry["defaults"][main] / 30.0, entry["defaults"][main] * 30.0)
+        lo, hi = entry["range"]  # the one table of plausible ranges: the mechanism registry
         out.append({"name": name, "main": main, "range": (float(lo), float(hi)), "doc": entry.get("doc", "")})
     return out
 
