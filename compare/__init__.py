@@ -38,7 +38,7 @@ __all__ += [
     "write_report",
 ]
 from .diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_diagnosis_json, write_diagnosis_report
-from ._discovery_bench import bench_discovery
+from ._discovery_bench import bench_command, bench_discovery
 
 __all__ += ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
-            "write_diagnosis_report", "bench_discovery"]
+            "write_diagnosis_report", "bench_discovery", "bench_command"]

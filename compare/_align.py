@@ -21,8 +21,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from ..simulate import ROPE_CHANNELS, trajectory_columns
-from ..simulate._table_schema import MAX_ROWS, check_trajectory_columns
+from ..simulate import MAX_TABLE_ROWS as MAX_ROWS
+from ..simulate import ROPE_CHANNELS, check_trajectory_columns, trajectory_columns
 
 __all__ = [
     "read_trajectory_table",

@@ -140,9 +140,7 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=None):
     ``keep``: a folder where the case's ``diagnosis.json`` is kept (as
     ``case<seed>.json``), to read why a case went the way it did.
     """
-    from ..capture import synthesize_session
-    from ..capture._lab import default_lab_cameras
-    from ..capture._session_io import write_session_dir
+    from ..capture import default_lab_cameras, synthesize_session, write_session_dir
     from ..simulate import dig_maneuver
     from .diagnose import diagnose_path
 

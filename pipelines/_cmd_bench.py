@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from dragline.capture._strict_json import json_text, write_json
+from dragline.capture import json_text, write_json
 
 from ._options import check_output_path
 
@@ -27,20 +27,20 @@ def add_parser(sub):
 
 
 def _simulate(args):
-    from dragline.simulate._bench import bench_simulate, summary_lines
+    from dragline.simulate import bench_simulate, summary_lines
 
     report = bench_simulate(repeats=args.repeats)
     return report, summary_lines(report)
 
 
 def _capture(args):
-    from dragline.capture._capture_bench import bench_capture
+    from dragline.capture import bench_capture
 
     return bench_capture(seed=args.seed), []
 
 
 def _reconstruct(args):
-    from dragline.reconstruct._bench_reconstruct import bench_reconstruction
+    from dragline.reconstruct import bench_reconstruction
 
     return bench_reconstruction(seed=args.seed), []
 
@@ -52,7 +52,7 @@ def _triangulation(args):
 
 
 def _discovery(args):
-    from dragline.compare._discovery_bench import bench_command
+    from dragline.compare import bench_command
 
     return bench_command(args)
 

@@ -5,10 +5,14 @@ from __future__ import annotations
 import sys
 import time
 
-from dragline.capture import calibrate, read_session
-from dragline.capture._cameras import camera_centre, save_cameras
-from dragline.capture import session_file
-from dragline.capture._strict_json import json_text
+from dragline.capture import (
+    calibrate,
+    camera_centre,
+    json_text,
+    read_session,
+    save_cameras,
+    session_file,
+)
 
 from ._guard import guard_outputs, session_inputs
 from ._options import check_output_path, number

@@ -6,12 +6,22 @@ import os
 import sys
 
 import numpy as np
-
-from dragline.compare import compare_tables, discretization_study, read_trajectory_table, write_report
-from dragline.compare._files import write_json
+from dragline.capture import write_json
+from dragline.compare import (
+    compare_tables,
+    discretization_study,
+    read_trajectory_table,
+    write_report,
+)
 
 from ._guard import guard_outputs
-from ._options import check_output_path, maneuver_from_args, number, physics_from_args, rig_from_args
+from ._options import (
+    check_output_path,
+    maneuver_from_args,
+    number,
+    physics_from_args,
+    rig_from_args,
+)
 
 
 def add_parser(sub):

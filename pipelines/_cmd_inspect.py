@@ -14,14 +14,18 @@ import os
 
 import numpy as np
 import pandas as pd
-
-from dragline.capture import read_session, summarize_mcap, summarize_vicon_csv
-from dragline.capture._c3d import is_c3d
-from dragline.capture._cameras import camera_centre, load_cameras
-from dragline.capture._marker_file import read_marker_file
-from dragline.capture._trc import is_trc
-from dragline.capture._session_io import session_file
-from dragline.capture._strict_json import json_text
+from dragline.capture import (
+    camera_centre,
+    is_c3d,
+    is_trc,
+    json_text,
+    load_cameras,
+    read_marker_file,
+    read_session,
+    session_file,
+    summarize_mcap,
+    summarize_vicon_csv,
+)
 from dragline.compare import read_trajectory_table
 from dragline.simulate import read_maneuver_csv
 
@@ -97,8 +101,7 @@ def _table(path):
 
 def _marker_file(path):
     """Summary of a C3D or TRC file; its first bytes decide (a C3D saved as .dat is still a C3D)."""
-    from dragline.capture._c3d import read_c3d
-    from dragline.capture._trc import read_trc
+    from dragline.capture import read_c3d, read_trc
 
     markers = read_c3d(path) if is_c3d(path) else read_trc(path) if is_trc(path) else read_marker_file(path)
     summary = markers.summary()

@@ -12,15 +12,17 @@ from __future__ import annotations
 import os
 import sys
 
-from dragline.capture import write_vicon_csv
-from dragline.capture._c3d import write_c3d
-from dragline.capture._marker_file import MARKER_FILE_EXTENSIONS
-from dragline.capture._trc import write_trc
-from dragline.capture._cameras import load_cameras
-from dragline.capture._strict_json import write_json
-from dragline.reconstruct._pipeline import (
-    METHODS,
-    SMOOTHINGS,
+from dragline.capture import (
+    MARKER_FILE_EXTENSIONS,
+    load_cameras,
+    write_c3d,
+    write_json,
+    write_trc,
+    write_vicon_csv,
+)
+from dragline.reconstruct import SMOOTHING_METHODS as SMOOTHINGS
+from dragline.reconstruct import TRIANGULATION_METHODS as METHODS
+from dragline.reconstruct import (
     reconstruct_marker_file,
     reconstruct_session,
     vicon_name,

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dragline.capture._strict_json import json_text
+from dragline.capture import json_text
 
 from ._options import number
 

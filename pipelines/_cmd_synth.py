@@ -12,10 +12,16 @@ import sys
 import time
 
 import numpy as np
-
-from dragline.capture._lab import default_lab_cameras
-from dragline.capture import atomic_directory, check_directory_target, write_session_dir
-from dragline.capture._synth import DEFAULTS, MAX_RATE_HZ, synthesize_session, write_truth
+from dragline.capture import (
+    MAX_RATE_HZ,
+    atomic_directory,
+    check_directory_target,
+    default_lab_cameras,
+    synthesize_session,
+    write_session_dir,
+    write_truth,
+)
+from dragline.capture import SYNTH_DEFAULTS as DEFAULTS
 from dragline.simulate import simulate
 
 from ._guard import guard_outputs

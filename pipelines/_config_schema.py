@@ -11,11 +11,11 @@ from __future__ import annotations
 
 from typing import Literal, Optional
 
+from dragline.capture import describe_validation_error, fields_markdown, key_text
+from dragline.reconstruct import SMOOTHING_METHODS as SMOOTHINGS
+from dragline.reconstruct import TRIANGULATION_METHODS as METHODS
+from dragline.simulate import DISCRETIZATION_LEVELS
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
-
-from dragline.capture._schema_tools import describe_validation_error, fields_markdown, key_text
-from dragline.reconstruct._pipeline import METHODS, SMOOTHINGS
-from dragline.simulate._rig import DISCRETIZATION_LEVELS
 
 __all__ = ["RunConfig", "validate_config", "config_schema_markdown"]
 

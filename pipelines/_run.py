@@ -160,12 +160,23 @@ def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False
 
 
 def _run_into(source, tmp, seed, maneuver, study, stage, config):
-    from dragline.capture import calibrate, read_session, save_cameras, write_results
+    from dragline.capture import (
+        MARKER_FILE_EXTENSIONS,
+        calibrate,
+        read_session,
+        save_cameras,
+        write_json,
+        write_results,
+    )
     from dragline.compare import compare_tables, discretization_study, write_report
-    from dragline.compare._files import write_json
-    from dragline.capture._marker_file import MARKER_FILE_EXTENSIONS
     from dragline.reconstruct import reconstruct_marker_file, reconstruct_session
-    from dragline.simulate import dig_maneuver, load_rig, read_maneuver_csv, simulate, write_trajectory_csv
+    from dragline.simulate import (
+        dig_maneuver,
+        load_rig,
+        read_maneuver_csv,
+        simulate,
+        write_trajectory_csv,
+    )
 
     sim, rec = config["simulate"], config["reconstruct"]
     rig = load_rig(sim["rig"])
@@ -183,7 +194,7 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
         measured, _ = stage("reconstruct the marker file", reconstruct_marker_file, source, rig, **options)
         session = None
     else:
-        from dragline.capture._session_io import session_file
+        from dragline.capture import session_file
 
         path = session_file(source)
         session, report = read_session(path)
@@ -233,7 +244,11 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
 
     summary = {"files": files, "stage_seconds": stage.times, "comparison": _headline(metrics)}
     if config["run"]["diagnose"]:
-        from dragline.compare import diagnose, write_diagnosis_json, write_diagnosis_report
+        from dragline.compare import (
+            diagnose,
+            write_diagnosis_json,
+            write_diagnosis_report,
+        )
 
         found = stage("diagnose the missing physics", diagnose, measured, maneuver, rig, discretization, workers=2,
                       seed=seed)
@@ -252,12 +267,20 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
 
 
 def _builtin_session(tmp, seed, rig):
-    from dragline.capture import synthesize_session, write_truth
-    from dragline.capture._lab import default_lab_cameras
-    from dragline.capture._session_io import write_session_dir
     import numpy as np
-
-    from dragline.simulate import apply_parameters, dig_maneuver, draw_parameters, parse_physics, simulate
+    from dragline.capture import (
+        default_lab_cameras,
+        synthesize_session,
+        write_session_dir,
+        write_truth,
+    )
+    from dragline.simulate import (
+        apply_parameters,
+        dig_maneuver,
+        draw_parameters,
+        parse_physics,
+        simulate,
+    )
 
     maneuver = dig_maneuver()
     hidden = [parse_physics(BUILTIN_HIDDEN_PHYSICS)]

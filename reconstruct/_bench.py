@@ -21,7 +21,7 @@ import time
 import cv2
 import numpy as np
 
-from ..capture._cameras import Camera, project_points
+from ..capture import Camera, project_points
 from ._triangulate import triangulate, undistort_detections
 
 __all__ = ["bench_triangulation", "bench_cameras"]
@@ -55,7 +55,7 @@ def bench_cameras():
 
 def _cameras_and_layout():
     try:
-        from ..capture._lab import default_lab_cameras  # noqa: PLC0415
+        from ..capture import default_lab_cameras  # noqa: PLC0415
     except ImportError:
         return _local_cameras(), "local"
     return list(default_lab_cameras()), "capture._lab.default_lab_cameras"

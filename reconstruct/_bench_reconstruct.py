@@ -30,8 +30,7 @@ import time
 
 import numpy as np
 
-from ..capture._lab import default_lab_cameras
-from ..capture._synth import project_views
+from ..capture import default_lab_cameras, project_views
 from ..simulate import load_rig, marker_positions, simulate
 from ._bench import bench_triangulation
 from ._pipeline import fill_markers, reconstruct_markers, trajectory_from_markers
@@ -61,7 +60,8 @@ def _gaussian_session(pos, cameras, noise_px, rng):
 def _synth_session(result, cameras, seed, noise_px):
     """Trial detections from ``synthesize_session`` (defaults), or None without that module."""
     try:
-        from ..capture._synth import DEFAULTS, synthesize_session  # noqa: PLC0415
+        from ..capture import SYNTH_DEFAULTS as DEFAULTS  # noqa: PLC0415
+        from ..capture import synthesize_session
     except ImportError:
         return None, None
     noise = DEFAULTS["noise_px"] if noise_px is None else noise_px

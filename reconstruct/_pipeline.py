@@ -60,10 +60,23 @@ import numpy as np
 import pandas as pd
 from numpy.lib.stride_tricks import sliding_window_view
 
-from ..simulate import ROPE_CHANNELS, euler_from_matrix, load_rig, marker_names, trajectory_columns
+from ..simulate import (
+    ROPE_CHANNELS,
+    euler_from_matrix,
+    load_rig,
+    marker_names,
+    trajectory_columns,
+)
 from ._bodies import body_frames_paper, body_frames_svd, body_origin, mass_centre
 from ._gaps import fill_gaps, fill_rigid, nan_runs
-from ._rates import RunningAverage, SavitzkyGolay, Smoother, body_rates, finite_difference, make_smoother
+from ._rates import (
+    RunningAverage,
+    SavitzkyGolay,
+    Smoother,
+    body_rates,
+    finite_difference,
+    make_smoother,
+)
 from ._ropes import rope_length_cubic
 from ._triangulate import triangulate
 
@@ -638,7 +651,7 @@ def reconstruct_marker_file(path, rig=None, method="paper", smoothing="running_a
         One line starting with the path: unreadable file, missing rig
         markers (named), frame numbers out of order.
     """
-    from ..capture._marker_file import read_marker_file  # noqa: PLC0415
+    from ..capture import read_marker_file  # noqa: PLC0415
 
     path = os.fspath(path)
     markers = read_marker_file(path)

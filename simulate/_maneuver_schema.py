@@ -52,7 +52,7 @@ class ManeuverColumns(BaseModel):
 
 def _row_of(loc):
     """'column hoist_length, row 7' from a pydantic location (the header is row 1)."""
-    from ..capture._schema_tools import key_text
+    from ..capture import key_text
 
     if len(loc) >= 2 and isinstance(loc[1], int):
         return f"column {key_text(loc[0])}, row {loc[1] + 2}"
@@ -63,7 +63,7 @@ def _row_of(loc):
 
 def check_maneuver_columns(columns, path):
     """``columns`` checked against `ManeuverColumns`; ValueError with one line naming the file otherwise."""
-    from ..capture._schema_tools import describe_validation_error
+    from ..capture import describe_validation_error
 
     try:
         ManeuverColumns.model_validate(columns)
@@ -84,7 +84,7 @@ def check_maneuver_columns(columns, path):
 
 def maneuver_markdown():
     """The maneuver schema as a Markdown table (``docs/schemas.md`` holds this text)."""
-    from ..capture._schema_tools import fields_markdown
+    from ..capture import fields_markdown
 
     header = ["| column | type | default | allowed | meaning |", "|---|---|---|---|---|"]
     return "\n".join(header + fields_markdown(ManeuverColumns)) + "\n"

@@ -114,7 +114,7 @@ class RigFile(_Strict):
 
 def check_rig_doc(doc, source):
     """``doc`` (parsed TOML) checked against `RigFile`; ValueError with one line naming the file otherwise."""
-    from ..capture._schema_tools import describe_validation_error, short_repr
+    from ..capture import describe_validation_error, short_repr
 
     try:
         RigFile.model_validate(doc)
@@ -131,7 +131,7 @@ def check_rig_doc(doc, source):
 
 def rig_markdown():
     """The rig file schema as Markdown tables (``docs/schemas.md`` holds this text)."""
-    from ..capture._schema_tools import fields_markdown
+    from ..capture import fields_markdown
 
     header = ["| key | type | default | allowed | meaning |", "|---|---|---|---|---|"]
     blocks = [header + fields_markdown(RigFile)]

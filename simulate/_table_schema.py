@@ -51,7 +51,7 @@ class TrajectoryColumns(BaseModel):
 
 def check_trajectory_columns(columns, what):
     """``columns`` (``{"time": [...], "channels": {...}}``) checked; ValueError naming ``what`` otherwise."""
-    from ..capture._schema_tools import describe_validation_error, key_text
+    from ..capture import describe_validation_error, key_text
 
     try:
         TrajectoryColumns.model_validate(columns)
@@ -75,7 +75,7 @@ def check_trajectory_columns(columns, what):
 
 def trajectory_markdown():
     """The trajectory-table schema as a Markdown table (``docs/schemas.md`` holds this text)."""
-    from ..capture._schema_tools import fields_markdown
+    from ..capture import fields_markdown
 
     header = ["| column | type | default | allowed | meaning |", "|---|---|---|---|---|"]
     return "\n".join(header + fields_markdown(TrajectoryColumns)) + "\n"

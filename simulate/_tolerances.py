@@ -102,7 +102,7 @@ def parse_tolerances(doc, bodies, ropes, fixed, source="rig"):
         An unknown key, body, rope, group, point or reel, or a tolerance that
         is not one positive finite number.
     """
-    from ..capture._schema_tools import key_text  # capture imports simulate: not at module level
+    from ..capture import key_text  # capture imports simulate: not at module level
 
     groups = {k: tuple(v) for k, v in doc.get("tolerance_groups", {}).items()}
     for g, members in groups.items():

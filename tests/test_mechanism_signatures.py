@@ -1,7 +1,7 @@
 """Each optional mechanism's signature on a small rig that isolates it (issue 6).
 
 A mechanism is identified in measured data by the law its free decay
-follows (DESIGN 6), so each one is run here alone, on the smallest rig where
+follows (docs/diagnosis.md), so each one is run here alone, on the smallest rig where
 that law can be derived by hand, with the ropes as pure springs
 (``dissipation=False``) so that the mechanism is the only loss:
 

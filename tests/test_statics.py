@@ -1,4 +1,4 @@
-"""Static poses of the built-in rig against the paper (DESIGN 4.6), and its data."""
+"""Static poses of the built-in rig against the paper (docs/model.md), and its data."""
 
 import tomllib
 

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...capture._strict_json import json_ready
+from ...capture import json_ready, write_json
 from ...simulate import (
     ROPE_CHANNELS,
     Maneuver,
@@ -59,6 +59,8 @@ from .._align import (
 )
 from .._compare import channel_kind
 from .._decay import free_decay
+from .._metrics import channel_metrics
+from ._decide import decide, leftover_share
 from ._hypotheses import (
     BLOCK_S,
     DECAY_WEIGHT,
@@ -77,9 +79,6 @@ from ._hypotheses import (
     signature_match,
     unavailable_reason,
 )
-from .._files import write_json
-from .._metrics import channel_metrics
-from ._decide import decide, leftover_share
 from ._locate import (
     DYNAMIC_CHANNELS,
     LOWPASS_S,
@@ -236,7 +235,7 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
     ValueError
         Unreadable input, a different rig's markers, no maneuver.
     """
-    from ...capture._mcap_io import read_session
+    from ...capture import read_session
 
     note = progress or (lambda msg: None)
     path = os.fspath(path)
@@ -279,14 +278,14 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
             else:
                 maneuver, source["maneuver"] = _session_maneuver(session, file), f"{file} (session info)"
         cameras, source["calibration"] = _session_cameras(session, file, folder, calibration, note)
-        from ...reconstruct._pipeline import reconstruct_session
+        from ...reconstruct import reconstruct_session
 
         try:
             table, _, _, _ = reconstruct_session(session, cameras, rig=rig)
         except ValueError as exc:
             raise ValueError(f"{file}: {exc}") from None
     elif kind == "markers":
-        from ...reconstruct._pipeline import reconstruct_marker_file
+        from ...reconstruct import reconstruct_marker_file
 
         table, _ = reconstruct_marker_file(file, rig=rig)
     else:
@@ -302,8 +301,7 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
 
 
 def _session_cameras(session, file, folder, calibration, note):
-    from ...capture import calibrate
-    from ...capture._cameras import load_cameras
+    from ...capture import calibrate, load_cameras
 
     if calibration is None and folder and os.path.isfile(os.path.join(folder, "cameras.json")):
         calibration = os.path.join(folder, "cameras.json")

@@ -1,0 +1,62 @@
+"""The repository's own rules, checked on its source (issue 19).
+
+- Each stage package's ``__init__`` is its public interface: across
+  packages, code imports only from it, never from another package's
+  private ``_module``.
+- The code cites the project's own docs/, never a document outside the
+  repository.
+"""
+
+import ast
+import re
+from pathlib import Path
+
+from conftest import REPO
+
+PACKAGES = ["capture", "reconstruct", "simulate", "compare", "pipelines"]
+
+
+def _imported_module(path, node):
+    """The absolute ``dragline.*`` module an ``ImportFrom`` node names."""
+    if node.level == 0:
+        return node.module or ""
+    parts = ["dragline", *path.relative_to(REPO).with_suffix("").parts]
+    base = parts[:-1][: len(parts) - node.level]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _sources():
+    for package in PACKAGES:
+        yield from sorted((REPO / package).rglob("*.py"))
+
+
+def test_no_package_imports_another_packages_private_module():
+    crossings = []
+    for path in _sources():
+        package = path.relative_to(REPO).parts[0]
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                parts = _imported_module(path, node).split(".")
+                if parts[0] == "dragline" and len(parts) > 2 and parts[1] != package \
+                        and any(p.startswith("_") for p in parts[2:]):
+                    crossings.append(f"{path.relative_to(REPO)}:{node.lineno} imports {'.'.join(parts)}")
+    assert not crossings, "\n".join(crossings)
+
+
+def test_the_checker_sees_a_private_crossing(tmp_path):
+    """The rule above can fail: the same resolution applied to a line that crosses."""
+    node = ast.parse("from ..capture._cameras import Camera").body[0]
+    parts = _imported_module(REPO / "simulate" / "_model.py", node).split(".")
+    assert parts == ["dragline", "capture", "_cameras"]
+
+
+def test_code_and_tests_cite_only_documents_in_the_repository():
+    outside = re.compile(r"\bDESIGN\s+\d|\.\./shared|/work/shared|shared/(?:DESIGN|seed|data)")
+    found = []
+    for path in [*_sources(), *sorted((REPO / "tests").glob("*.py")), *sorted((REPO / "tools").glob("*.py"))]:
+        if path.name == "test_package_contracts.py":
+            continue
+        for number, line in enumerate(path.read_text().splitlines(), 1):
+            if outside.search(line):
+                found.append(f"{path.relative_to(REPO)}:{number}: {line.strip()}")
+    assert not found, "\n".join(found)
