@@ -23,6 +23,7 @@
 
 # Helpers first: the later stages import them, and capture itself imports simulate.
 from ._schema_tools import describe_validation_error, fields_markdown, key_text, short_repr
+from ._atomic import atomic_file
 from ._strict_json import json_ready, json_text, write_json
 
 from ._calibration import calibrate

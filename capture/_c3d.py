@@ -21,6 +21,7 @@ import os
 
 import numpy as np
 
+from ._atomic import atomic_file
 from ._marker_file import MAX_FRAMES, MarkerFile, metres_per_unit
 
 __all__ = ["read_c3d", "write_c3d", "is_c3d"]
@@ -239,12 +240,6 @@ def write_c3d(path, marker_names, positions, rate_hz, first_frame=1):
     c3d["data"]["meta_points"] = {"residuals": residuals,
                                   "camera_masks": np.zeros((7, len(names), p.shape[0]), dtype=bool)}
     c3d["header"]["points"]["first_frame"] = int(first_frame) - 1
-    folder = os.path.dirname(os.path.abspath(path))
-    tmp = os.path.join(folder, f".{os.path.basename(path)}.partial-{os.getpid()}.c3d")
-    try:
+    with atomic_file(path, suffix=".c3d") as tmp:  # ezc3d picks the format by extension
         c3d.write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
     return path

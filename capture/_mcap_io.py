@@ -43,6 +43,7 @@ import numpy as np
 from mcap.records import Channel, Message, Schema
 from mcap.writer import CompressionType, Writer
 
+from ._atomic import atomic_file
 from ._mcap_scan import MAGIC as _MAGIC
 from ._mcap_scan import scan_records
 from ._session_schema import SESSION_FORMAT, check_session_info
@@ -135,21 +136,13 @@ class _FlushingFile:
 
 def _atomic_mcap(path, fill, chunk_size):
     """Write an MCAP file through ``fill(writer)`` under a temporary name, then rename."""
-    tmp = os.path.join(os.path.dirname(os.path.abspath(path)),
-                       f".{os.path.basename(path)}.tmp{os.getpid()}")
-    try:
-        with open(tmp, "wb") as fh:
-            writer = Writer(_FlushingFile(fh), chunk_size=chunk_size,
-                            compression=CompressionType.ZSTD)
-            writer.start(profile="", library="dragline")
-            fill(writer)
-            writer.finish()
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with atomic_file(path) as tmp, open(tmp, "wb") as fh:
+        writer = Writer(_FlushingFile(fh), chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        writer.start(profile="", library="dragline")
+        fill(writer)
+        writer.finish()
+        fh.flush()
+        os.fsync(fh.fileno())
 
 
 def _json_bytes(obj):

@@ -14,6 +14,8 @@ import os
 
 import numpy as np
 
+from ._atomic import atomic_file
+
 __all__ = ["json_ready", "json_text", "write_json"]
 
 
@@ -48,13 +50,6 @@ def json_text(obj, indent=1, separators=None):
 
 def write_json(path, doc, indent=1):
     """Write ``doc`` as strict JSON under a temporary name, then rename it into place."""
-    path = os.fspath(path)
     text = json_text(doc, indent=indent) + "\n"
-    tmp = f"{path}.tmp{os.getpid()}"
-    try:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with atomic_file(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(text)

@@ -22,6 +22,7 @@ import os
 
 import numpy as np
 
+from ._atomic import atomic_file
 from ._marker_file import MAX_FRAMES, MarkerFile, metres_per_unit
 
 __all__ = ["read_trc", "write_trc", "is_trc"]
@@ -180,13 +181,6 @@ def write_trc(path, marker_names, positions, rate_hz, first_frame=1, units="mm")
         cells = [str(first_frame + i), repr(i / float(rate_hz))]
         cells += ["" if not math.isfinite(v) else repr(float(v)) for v in p[i].ravel()]
         out.append("\t".join(cells))
-    folder = os.path.dirname(os.path.abspath(path))
-    tmp = os.path.join(folder, f".{os.path.basename(path)}.partial-{os.getpid()}")
-    try:
-        with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write("\n".join(out) + "\n")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with atomic_file(path) as tmp, open(tmp, "w", encoding="utf-8", newline="\n") as fh:
+        fh.write("\n".join(out) + "\n")
     return path

@@ -35,6 +35,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._atomic import atomic_file
+
 __all__ = [
     "ViconSection",
     "ViconExport",
@@ -483,18 +485,8 @@ def write_vicon_csv(path, marker_names, positions, rate_hz, first_frame=1, decim
     for f, row in enumerate(mm):
         cells = ["" if math.isnan(v) else fmt.format(v) for v in row.tolist()]
         out.append(",".join([str(int(first_frame) + f), "0"] + cells))
-    # Same folder, so the rename is atomic; open() (not mkstemp) keeps the
-    # user's umask permissions on the final file.
-    tmp = os.path.join(os.path.dirname(os.path.abspath(path)),
-                       f".{os.path.basename(path)}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "w", encoding="utf-8", newline="") as fh:
-            fh.write("\n".join(out) + "\n")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_file(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as fh:
+        fh.write("\n".join(out) + "\n")
 
 
 def _run_lengths(missing):

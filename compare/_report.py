@@ -14,13 +14,13 @@ identical inputs give a byte-identical file.
 from __future__ import annotations
 
 import math
-import os
 from contextlib import contextmanager
 
 import matplotlib
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 
+from ..capture import atomic_file
 from ._align import align_tables
 from ._compare import FREE_DECAY_CHANNELS, TOLERANCES, channel_kind
 from ._paper import DIG_PEAKS, FIGURES
@@ -49,16 +49,9 @@ TEXT_TOP, TEXT_BOTTOM = 0.91, 0.04
 @contextmanager
 def report_pdf(path, title):
     """A deterministic PDF (no dates, ``REPORT_STYLE``) written under a temporary name, renamed when complete."""
-    path = os.fspath(path)
-    tmp = f"{path}.tmp{os.getpid()}"
-    try:
-        with matplotlib.rc_context(REPORT_STYLE):
-            with PdfPages(tmp, metadata={"CreationDate": None, "ModDate": None, "Title": title}) as pdf:
-                yield pdf
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with atomic_file(path) as tmp, matplotlib.rc_context(REPORT_STYLE):
+        with PdfPages(tmp, metadata={"CreationDate": None, "ModDate": None, "Title": title}) as pdf:
+            yield pdf
 
 
 def fmt(value, spec=".3g", none="-"):

@@ -164,8 +164,7 @@ def maneuver_from_columns(columns, path):
 
 def write_maneuver_csv(path, maneuver):
     """Write a maneuver table as CSV (atomic: temporary name, then rename)."""
-    import os
+    from dragline.capture import atomic_file  # noqa: PLC0415 - capture imports simulate
 
-    tmp = f"{path}.tmp{os.getpid()}"
-    maneuver.to_frame().to_csv(tmp, index=False, float_format="%.9g")
-    os.replace(tmp, path)
+    with atomic_file(path) as tmp:
+        maneuver.to_frame().to_csv(tmp, index=False, float_format="%.9g")

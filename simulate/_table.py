@@ -36,12 +36,7 @@ def write_trajectory_csv(path, table):
 
     Nine significant digits: 1 nm at 1 m, far below any measurement.
     """
-    import os
+    from dragline.capture import atomic_file  # noqa: PLC0415 - capture imports simulate
 
-    tmp = f"{path}.tmp{os.getpid()}"
-    try:
+    with atomic_file(path) as tmp:
         table.to_csv(tmp, index=False, float_format="%.9g")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)

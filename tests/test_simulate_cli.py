@@ -32,7 +32,7 @@ def test_simulate_writes_the_trajectory_table(tmp_path, capsys):
     assert list(table.columns[: len(trajectory_columns())]) == trajectory_columns()
     assert len(table) == 101 and table["time"].iloc[-1] == pytest.approx(1.0)
     assert np.isfinite(table[trajectory_columns()].to_numpy()).all()
-    assert not list(tmp_path.glob("*.tmp*"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["traj.csv"]  # no temporary left
 
 
 def test_user_maneuver_csv_is_used(tmp_path):
