@@ -33,9 +33,11 @@ from ._mcap_io import CaptureSession, read_session, summarize_mcap, write_sessio
 from ._session_io import (
     OUTPUT_MARKER,
     SESSION_FILES,
+    RecordingInput,
     atomic_directory,
     check_directory_target,
     mark_output,
+    resolve_recording,
     session_file,
     write_session_dir,
 )

@@ -13,10 +13,13 @@ from __future__ import annotations
 import os
 import shutil
 
+from dataclasses import dataclass
+
+from ._marker_file import MARKER_FILE_EXTENSIONS
 from ._mcap_io import SESSION_FILE, write_session
 
 __all__ = ["SESSION_FILE", "MANEUVER_FILE", "SESSION_FILES", "OUTPUT_MARKER", "session_file", "check_directory_target",
-           "atomic_directory", "mark_output", "write_session_dir"]
+           "atomic_directory", "mark_output", "write_session_dir", "RecordingInput", "resolve_recording"]
 
 MANEUVER_FILE = "maneuver.csv"
 #: Every file a command may read from a session directory.
@@ -50,6 +53,83 @@ def session_file(path):
     if not os.path.isfile(path):
         raise ValueError(f"{path}: no such session directory or MCAP file")
     return path
+
+
+@dataclass(frozen=True)
+class RecordingInput:
+    """What a recording path holds (``resolve_recording``).
+
+    Attributes
+    ----------
+    kind : str
+        ``session`` (an MCAP capture session), ``markers`` (3D markers: a
+        VICON CSV, C3D or TRC file) or ``table`` (a trajectory table CSV).
+    file : str
+        The file to read.
+    directory : str or None
+        The session directory given, if a directory was given (it may hold
+        ``cameras.json`` and ``maneuver.csv``).
+    folder : str
+        The folder the input lives in: the directory given, or the file's.
+    """
+
+    kind: str
+    file: str
+    directory: str | None
+    folder: str
+
+
+def _is_trajectory_table(path):
+    """A CSV whose header has ``time`` and ``<entity>.<quantity>`` names (a VICON export has neither)."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            names = [c.strip() for c in fh.readline().split(",")]
+    except OSError:
+        return False
+    return "time" in names and any("." in n for n in names)
+
+
+def resolve_recording(path, tables=False):
+    """The one way every command tells what a recording path is.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A session directory (``capture.mcap``, or without one ``markers.csv``),
+        a ``.mcap`` session file, a marker file (``.csv`` VICON export,
+        ``.c3d``, ``.trc``) or, with ``tables``, a trajectory table CSV.
+    tables : bool
+        Whether a trajectory table is a recording here (``diagnose`` and
+        ``compare`` take one; ``reconstruct`` and ``run`` make one).
+
+    Returns
+    -------
+    RecordingInput
+
+    Raises
+    ------
+    ValueError
+        No such path, a directory without a session, an unknown extension.
+    """
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        for kind, name in (("session", SESSION_FILE), ("markers", "markers.csv")):
+            if os.path.isfile(os.path.join(path, name)):
+                return RecordingInput(kind, os.path.join(path, name), path, path)
+        raise ValueError(f"{path}: session directory holds neither {SESSION_FILE} nor markers.csv")
+    if not os.path.isfile(path):
+        raise ValueError(f"{path}: no such file or directory")
+    folder = os.path.dirname(os.path.abspath(path))
+    ext = os.path.splitext(path)[1].lower()
+    if ext == ".mcap":
+        return RecordingInput("session", path, None, folder)
+    if ext == ".csv" and tables and _is_trajectory_table(path):
+        return RecordingInput("table", path, None, folder)
+    if ext in MARKER_FILE_EXTENSIONS:
+        return RecordingInput("markers", path, None, folder)
+    table = ", a trajectory table" if tables else ""
+    raise ValueError(f"{path}: expected a session directory, a .mcap session file{table} or a marker file "
+                     "(.csv VICON export, .c3d, .trc)")
 
 
 def check_directory_target(path, overwrite=False):

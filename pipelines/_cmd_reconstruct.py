@@ -13,8 +13,8 @@ import os
 import sys
 
 from dragline.capture import (
-    MARKER_FILE_EXTENSIONS,
     load_cameras,
+    resolve_recording,
     write_c3d,
     write_json,
     write_trc,
@@ -65,27 +65,6 @@ def add_parser(sub):
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
 
 
-def _resolve_input(path):
-    """('session', mcap path, session dir or None) or ('markers', marker file path, None)."""
-    if os.path.isdir(path):
-        mcap = os.path.join(path, "capture.mcap")
-        if os.path.isfile(mcap):
-            return "session", mcap, path
-        csv = os.path.join(path, "markers.csv")
-        if os.path.isfile(csv):
-            return "markers", csv, None
-        raise ValueError(f"{path}: session directory holds neither capture.mcap nor markers.csv")
-    if not os.path.exists(path):
-        raise ValueError(f"{path}: no such file or directory")
-    ext = os.path.splitext(path)[1].lower()
-    if ext == ".mcap":
-        return "session", path, None
-    if ext in MARKER_FILE_EXTENSIONS:
-        return "markers", path, None
-    raise ValueError(f"{path}: expected a session directory, a .mcap session file or a marker file "
-                     "(.csv VICON export, .c3d, .trc)")
-
-
 def _calibration(args, session_dir, session_path):
     path = args.calibration
     if path is None and session_dir is not None:
@@ -112,7 +91,8 @@ def run(args):
     if not args.max_reprojection_px > 0:
         raise ValueError("--max-reprojection-px must be positive")
     guard_outputs([*session_inputs(args.input, extra=("cameras.json",)), args.calibration, args.rig], files=outputs)
-    kind, path, session_dir = _resolve_input(args.input)
+    recording = resolve_recording(args.input)
+    kind, path, session_dir = recording.kind, recording.file, recording.directory
     rig = rig_from_args(args)
     options = dict(rig=rig, method=args.method, smoothing=args.smoothing, max_gap=args.max_gap,
                    max_deviation=args.outlier_mm * 1e-3 if args.outlier_mm > 0 else None)

@@ -161,9 +161,9 @@ def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False
 
 def _run_into(source, tmp, seed, maneuver, study, stage, config):
     from dragline.capture import (
-        MARKER_FILE_EXTENSIONS,
         calibrate,
         read_session,
+        resolve_recording,
         save_cameras,
         write_json,
         write_results,
@@ -189,14 +189,12 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
         session, maneuver = stage("synthesise the lab session", _builtin_session, tmp, seed, rig)
         files["session"] = str(tmp / "session")
         files["truth"] = str(tmp / "truth")
-    elif str(source).lower().endswith(MARKER_FILE_EXTENSIONS):
+    elif (recording := resolve_recording(source)).kind == "markers":
         maneuver = maneuver or dig_maneuver()
-        measured, _ = stage("reconstruct the marker file", reconstruct_marker_file, source, rig, **options)
+        measured, _ = stage("reconstruct the marker file", reconstruct_marker_file, recording.file, rig, **options)
         session = None
     else:
-        from dragline.capture import session_file
-
-        path = session_file(source)
+        path = recording.file
         session, report = read_session(path)
         if session.wand is None or session.lframe is None:
             raise ValueError(f"{path}: no calibration takes (wand and L-frame) to calibrate the cameras from")

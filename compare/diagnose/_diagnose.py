@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...capture import json_ready, write_json
+from ...capture import json_ready, resolve_recording, write_json
 from ...simulate import (
     ROPE_CHANNELS,
     Maneuver,
@@ -194,13 +194,6 @@ def _session_maneuver(session, path):
     return Maneuver(cols["time"], cols["hoist_length"], cols["drag_length"], points)
 
 
-def _is_trajectory_table(path):
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        head = fh.readline()
-    names = [c.strip() for c in head.split(",")]
-    return "time" in names and any("." in n for n in names)
-
-
 def load_recording(path, maneuver=None, rig=None, calibration=None, progress=None):
     """The measured trajectory table and the maneuver of a recording.
 
@@ -242,29 +235,8 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
     rig = load_rig() if rig is None else rig
     maneuver = _read_maneuver_arg(maneuver)
     source = {"input": path}
-    folder = None
-    if os.path.isdir(path):
-        folder = path
-        if os.path.isfile(os.path.join(path, "capture.mcap")):
-            kind, file = "session", os.path.join(path, "capture.mcap")
-        elif os.path.isfile(os.path.join(path, "markers.csv")):
-            kind, file = "markers", os.path.join(path, "markers.csv")
-        else:
-            raise ValueError(f"{path}: the directory holds neither capture.mcap nor markers.csv")
-    elif os.path.isfile(path):
-        ext = os.path.splitext(path)[1].lower()
-        if ext == ".mcap":
-            kind, file = "session", path
-        elif ext == ".csv":
-            kind, file = ("table" if _is_trajectory_table(path) else "markers"), path
-        elif ext in (".c3d", ".trc"):
-            kind, file = "markers", path
-        else:
-            raise ValueError(f"{path}: expected a session directory, a .mcap file, a .csv file (VICON export or "
-                             "trajectory table), a .c3d or a .trc file")
-        folder = os.path.dirname(os.path.abspath(path))
-    else:
-        raise ValueError(f"{path}: no such file or directory")
+    recording = resolve_recording(path, tables=True)
+    kind, file, folder = recording.kind, recording.file, recording.folder
     source["kind"] = kind
     beside = os.path.join(folder, "maneuver.csv") if folder else None
 
