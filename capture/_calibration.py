@@ -43,6 +43,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import minimum_spanning_tree
+from scipy.spatial.transform import Rotation
 
 from ._cameras import Camera
 
@@ -113,17 +114,7 @@ def _one_blas_thread():
 
 def _rodrigues(rvecs):
     """Rotation matrices of rotation vectors, shape (n, 3) -> (n, 3, 3)."""
-    theta = np.linalg.norm(rvecs, axis=1)
-    small = theta < 1e-12
-    th = np.where(small, 1.0, theta)
-    k = rvecs / th[:, None]
-    kx = np.zeros((len(rvecs), 3, 3))
-    kx[:, 0, 1], kx[:, 0, 2] = -k[:, 2], k[:, 1]
-    kx[:, 1, 0], kx[:, 1, 2] = k[:, 2], -k[:, 0]
-    kx[:, 2, 0], kx[:, 2, 1] = -k[:, 1], k[:, 0]
-    s = np.where(small, 0.0, np.sin(theta))[:, None, None]
-    c = np.where(small, 0.0, 1.0 - np.cos(theta))[:, None, None]
-    return np.eye(3) + s * kx + c * (kx @ kx)
+    return Rotation.from_rotvec(rvecs).as_matrix()
 
 
 def _project(points, R, t, intr):
@@ -200,11 +191,14 @@ def triangulate_views(pixels, cameras):
 
 
 def _rigid_fit(src, dst):
-    """Rotation Q (det +1) and translation d minimising |Q src + d - dst|."""
+    """Rotation Q (det +1) and translation d minimising |Q src + d - dst| (Kabsch, through scipy).
+
+    ``reconstruct.body_frames_svd`` is the same fit batched over frames with gaps; it stays separate
+    because ``Rotation.align_vectors`` fits one point set at a time.
+    """
     ms, md = src.mean(axis=0), dst.mean(axis=0)
-    U, _, Vt = np.linalg.svd((dst - md).T @ (src - ms))
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    Q = U @ D @ Vt
+    rotation, _ = Rotation.align_vectors(dst - md, src - ms)
+    Q = rotation.as_matrix()
     return Q, md - Q @ ms
 
 
