@@ -34,9 +34,6 @@ Degenerate takes raise ``ValueError`` naming the take and camera at fault.
 
 from __future__ import annotations
 
-import ctypes
-import os
-from contextlib import contextmanager
 
 import cv2
 import numpy as np
@@ -44,6 +41,7 @@ from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import minimum_spanning_tree
 from scipy.spatial.transform import Rotation
+from threadpoolctl import threadpool_limits
 
 from ._cameras import Camera
 
@@ -69,45 +67,6 @@ _FTOL = 1e-8
 
 def _fail(msg):
     raise ValueError(msg)
-
-
-@contextmanager
-def _one_blas_thread():
-    """Run OpenBLAS single-threaded inside the block, then restore it.
-
-    LSMR makes thousands of dot products of vectors with 1e4-1e5 entries;
-    OpenBLAS hands those to its threads, and on a loaded machine each
-    hand-off waits for a core: the adjustment ran 15x slower. This is what
-    ``threadpoolctl`` does, without the dependency: find the loaded OpenBLAS
-    libraries and call their ``set_num_threads``.
-    """
-    restore = []
-    try:
-        with open("/proc/self/maps") as fh:
-            paths = {line.split()[-1] for line in fh if "openblas" in os.path.basename(line.strip()).lower()}
-    except OSError:
-        paths = set()
-    for path in sorted(paths):
-        try:
-            lib = ctypes.CDLL(path)
-        except OSError:
-            continue
-        for prefix in ("scipy_openblas", "openblas"):
-            for suffix in ("64_", ""):
-                get = getattr(lib, f"{prefix}_get_num_threads{suffix}", None)
-                put = getattr(lib, f"{prefix}_set_num_threads{suffix}", None)
-                if get is not None and put is not None:
-                    restore.append((put, get()))
-                    put(1)
-                    break
-            else:
-                continue
-            break
-    try:
-        yield
-    finally:
-        for put, n in restore:
-            put(n)
 
 
 # ---------------------------------------------------------------- geometry
@@ -515,7 +474,9 @@ def _adjust(problem, x0, f_scale):
     # LSMR's default tolerances stop the inner solve early; the adjustment is
     # ill-conditioned (focal length against distance), so inexact steps
     # crawl. Tight tolerances converge in a few outer steps.
-    with _one_blas_thread():
+    # LSMR makes thousands of dot products of vectors with 1e4-1e5 entries; OpenBLAS hands them to
+    # its threads, and on a loaded machine each hand-off waits for a core (measured 15x slower).
+    with threadpool_limits(1, user_api="blas"):
         return least_squares(problem.residuals, x0, jac_sparsity=problem.sparsity(),
                              method="trf",
                              tr_solver="lsmr", tr_options={"atol": _LSMR_TOL, "btol": _LSMR_TOL},

@@ -18,6 +18,7 @@ import os
 import re
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..simulate import BODIES, body_to_inertial
 from ._mcap_io import CHUNK_SIZE, _atomic_mcap, _json_bytes
@@ -26,7 +27,7 @@ __all__ = ["write_results", "quaternion_from_matrix", "FOXGLOVE_SCHEMAS"]
 
 
 def quaternion_from_matrix(T):
-    """Unit quaternion ``(x, y, z, w)`` of a rotation matrix (Shepperd's method).
+    """Unit quaternion ``(x, y, z, w)`` of a rotation matrix, through scipy's ``Rotation``.
 
     The quaternion rotates vectors like the matrix: ``T @ v == q v q*``
     (Hamilton convention, Foxglove's). ``w >= 0``.
@@ -42,26 +43,10 @@ def quaternion_from_matrix(T):
     """
     T = np.asarray(T, float)
     m = T.reshape(-1, 3, 3)
-    d = np.stack([m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2], m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]], -1)
-    # Dividing by the largest of the four candidates keeps the square root well away from 0.
-    case = np.argmax(np.nan_to_num(d, nan=0.0), axis=-1)
-    q = np.empty((m.shape[0], 4))
-    d_zy, d_xz, d_yx = m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]
-    s_xy, s_xz, s_yz = m[:, 0, 1] + m[:, 1, 0], m[:, 0, 2] + m[:, 2, 0], m[:, 1, 2] + m[:, 2, 1]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        # s = 4 * (the component that is largest in magnitude)
-        s = 2.0 * np.sqrt(np.maximum(np.choose(case, [
-            1 + d[:, 0], 1 + 2 * d[:, 1] - d[:, 0],
-            1 + 2 * d[:, 2] - d[:, 0], 1 + 2 * d[:, 3] - d[:, 0]]), 0.0))
-        rows = [(d_zy / s, d_xz / s, d_yx / s, s / 4),
-                (s / 4, s_xy / s, s_xz / s, d_zy / s),
-                (s_xy / s, s / 4, s_yz / s, d_xz / s),
-                (s_xz / s, s_yz / s, s / 4, d_yx / s)]
-        for k, row in enumerate(rows):
-            sel = case == k
-            q[sel] = np.stack(row, -1)[sel]
-        q /= np.linalg.norm(q, axis=-1, keepdims=True)
-    q *= np.where(q[:, 3:] < 0, -1.0, 1.0)
+    q = np.full((m.shape[0], 4), np.nan)
+    ok = np.isfinite(m).all(axis=(1, 2))
+    if ok.any():
+        q[ok] = Rotation.from_matrix(m[ok]).as_quat(canonical=True)
     return q.reshape(T.shape[:-2] + (4,))
 
 
