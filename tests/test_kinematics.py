@@ -68,3 +68,17 @@ def test_kernel_rotation_matches_numpy():
 
     for angles in [(0.3, -0.9, 0.2), (-1.0, 2.0, -2.5)]:
         np.testing.assert_allclose(kernel_matrix(*angles), body_to_inertial(*angles), atol=1e-15)
+
+
+def test_eq11_and_its_inverse_agree_with_scipy_rotation():
+    """Eq. 11 is the intrinsic sequence pitch about J, roll about I, yaw about K ("YXZ" in scipy);
+    the paper's form stays written out (the kernel compiles the same lines) and is held to the library."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(4)
+    angles = np.column_stack([rng.uniform(-1.4, 1.4, 300), rng.uniform(-3.1, 3.1, 300), rng.uniform(-3.1, 3.1, 300)])
+    roll, pitch, yaw = angles.T
+    library = Rotation.from_euler("YXZ", np.column_stack([pitch, roll, yaw]))
+    np.testing.assert_allclose(body_to_inertial(roll, pitch, yaw), library.as_matrix(), atol=1e-14)
+    back = library.as_euler("YXZ")
+    np.testing.assert_allclose(np.column_stack(euler_from_matrix(library.as_matrix())), back[:, [1, 0, 2]], atol=1e-12)
