@@ -39,6 +39,8 @@ __all__ += [
 ]
 from .diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_diagnosis_json, write_diagnosis_report
 from ._discovery_bench import bench_command, bench_discovery
+from ._executor import DaskExecutor, Executor, ExecutorError, LocalExecutor, as_executor, executor_from
 
 __all__ += ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
-            "write_diagnosis_report", "bench_discovery", "bench_command"]
+            "write_diagnosis_report", "bench_discovery", "bench_command",
+            "Executor", "LocalExecutor", "DaskExecutor", "ExecutorError", "executor_from", "as_executor"]

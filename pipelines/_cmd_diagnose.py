@@ -8,7 +8,14 @@ import time
 from dragline.compare.diagnose import candidate_list, diagnose_path, write_diagnosis_json, write_diagnosis_report
 
 from ._guard import guard_outputs, session_inputs
-from ._options import check_output_path, discretization_from_args, number, rig_from_args
+from ._options import (
+    add_scheduler_option,
+    check_output_path,
+    discretization_from_args,
+    executor_from_args,
+    number,
+    rig_from_args,
+)
 
 
 def add_parser(sub):
@@ -33,6 +40,7 @@ def add_parser(sub):
                    help="mechanisms to try (default: every mechanism the simulator has)")
     p.add_argument("--workers", type=number(integer=True, maximum=256), default=2, metavar="N",
                    help="simulation processes (default 2)")
+    add_scheduler_option(p)
     p.add_argument("--seed", type=number("nonnegative", integer=True, maximum=2**32 - 1), default=0, metavar="N",
                    help="seeds the null test's surrogates (default 0)")
     p.add_argument("--json", required=True, metavar="DIAGNOSIS.json", help="diagnosis to write")
@@ -57,7 +65,7 @@ def run(args):
     say = (lambda msg: None) if args.quiet else (lambda msg: print(f"dragline: {msg}", file=sys.stderr))
     t0 = time.perf_counter()
     result = diagnose_path(args.input, maneuver=args.maneuver, rig=rig, calibration=args.calibration,
-                           discretization=discretization, candidates=names, workers=args.workers,
+                           discretization=discretization, candidates=names, workers=executor_from_args(args),
                            seed=args.seed, progress=say)
     write_diagnosis_json(args.json, result.doc)
     if args.report:

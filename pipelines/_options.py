@@ -103,3 +103,20 @@ def check_output_path(path):
         raise ValueError(f"output folder {folder} is not writable")
     if os.path.isdir(path):
         raise ValueError(f"output {path} is a directory")
+
+
+def add_scheduler_option(parser):
+    """``--scheduler ADDRESS``: run the simulations on a Dask cluster (docs/interfaces.md)."""
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="Dask scheduler (for example tcp://host:8786) that runs the simulations; default: "
+                             "$DRAGLINE_SCHEDULER, else local processes (pip install 'dragline[dask]')")
+
+
+def executor_from_args(args):
+    """The executor the options ask for: ``--scheduler``/``DRAGLINE_SCHEDULER`` (Dask), else ``--workers``."""
+    from dragline.compare import executor_from  # noqa: PLC0415 - compare is heavy; only these commands need it
+
+    scheduler = getattr(args, "scheduler", None)
+    if scheduler is not None and not scheduler.strip():
+        raise ValueError("--scheduler: expected a Dask scheduler address such as tcp://host:8786")
+    return executor_from(getattr(args, "workers", 2), scheduler)

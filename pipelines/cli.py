@@ -73,7 +73,9 @@ def main(argv=None):
         interrupt = _interruption(exc)
         if interrupt is not None:
             return _stopped(interrupt)
-        if isinstance(exc, SimulationError):
+        from dragline.compare import ExecutorError
+
+        if isinstance(exc, (SimulationError, ExecutorError)):  # a failure of the run, not of this program
             print(f"dragline: {_one_line(exc)}", file=sys.stderr)
             return 1
         import traceback

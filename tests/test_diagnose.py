@@ -69,9 +69,28 @@ def nominal_diagnosis(nominal_measured):
 
 @pytest.fixture(scope="module")
 def aero_diagnosis(nominal_run):
+    """Diagnosed on a Dask cluster (two local worker processes) when Dask is installed: every test of
+    this fixture then holds for the distributed executor too (tests/test_executor.py shows its
+    simulations equal the local ones bit for bit)."""
     run = simulate(physics=[parse_physics(f"aero_drag:cd={CD_TRUE}")], initial_state=nominal_run.states[0],
                    discretization=LEVEL)
-    return diagnose(noisy(run.table, seed=12), candidates=CANDIDATES, workers=2, discretization=LEVEL)
+    table = noisy(run.table, seed=12)
+    try:
+        import distributed
+    except ImportError:
+        return diagnose(table, candidates=CANDIDATES, workers=2, discretization=LEVEL)
+    from dragline.compare import DaskExecutor
+
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
+        with distributed.Client(c) as client:
+            return diagnose(table, candidates=CANDIDATES, workers=DaskExecutor(client=client), discretization=LEVEL)
+
+
+def test_the_diagnosis_records_its_executor(aero_diagnosis, nominal_diagnosis):
+    assert nominal_diagnosis.doc["executor"] == {"kind": "local", "address": None, "workers": 2}
+    pytest.importorskip("distributed")
+    executor = aero_diagnosis.doc["executor"]
+    assert executor["kind"] == "dask" and executor["address"].startswith("tcp://127.0.0.1:") and executor["workers"] == 2
 
 
 # ---------------------------------------------------------------- locate

@@ -57,6 +57,7 @@ from .._align import (
     read_trajectory_table,
     reels_stop_time,
 )
+from .._executor import as_executor
 from .._compare import channel_kind
 from .._decay import free_decay
 from .._metrics import channel_metrics
@@ -512,8 +513,10 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         Of every simulation (``baseline`` by default).
     candidates : sequence of str, optional
         Mechanism names; every one in ``MECHANISMS`` by default.
-    workers : int
-        Processes for the simulations.
+    workers : int or Executor
+        Where the simulations run: a number of local processes, or an
+        ``Executor`` (``compare.executor_from``: local processes or a Dask
+        cluster). Results do not depend on it.
     seed : int
         Seeds the null test's surrogates.
     source : dict, optional
@@ -890,6 +893,7 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         "settings": {"discretization": discretization if isinstance(discretization, str) else dict(discretization),
                      "candidates": [c["name"] for c in cands], "decay_weight": DECAY_WEIGHT,
                      "block_s": BLOCK_S, "lowpass_s": LOWPASS_S, "rate_hz": rate},
+        "executor": as_executor(workers).describe(),
         "timing": {"seconds": _time.perf_counter() - started,
                    "simulations": 1 + sum(h["n_simulations"] for h in hypotheses)
                    + (second["n_simulations"] if second else 0) + model_error_sims

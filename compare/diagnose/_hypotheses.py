@@ -60,13 +60,11 @@ larger of the profile and the fold spread is the stated uncertainty.
 from __future__ import annotations
 
 import math
-import multiprocessing
-import os
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from .._executor import as_executor
 from ...simulate import (
     MECHANISMS,
     SimulationError,
@@ -420,18 +418,14 @@ def _refine_job(name, main, lo, hi):
     return name, points
 
 
-def _pool(workers, ctx):
-    if workers <= 1:
-        return None
-    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
-                               initializer=_init, initargs=(ctx,))
+def _pool(workers, ctx, at_most=None):
+    """A session of the executor (``workers``: an ``Executor`` or a process count) with ``ctx`` in every task."""
+    executor = as_executor(workers)
+    return (executor if at_most is None else executor.limited(at_most)).open(_init, (ctx,))
 
 
 def _map(pool, fn, jobs):
-    if pool is None:
-        return [fn(*job) for job in jobs]
-    return list(pool.map(fn, *zip(*jobs))) if jobs else []
+    return pool.map(fn, jobs)
 
 
 def fit_candidates(problem, ctx, candidates, nominal_sim, workers=2, progress=None):
@@ -473,7 +467,7 @@ def fit_candidates(problem, ctx, candidates, nominal_sim, workers=2, progress=No
                                     nominal_step))
     # Longest first: two workers finish together.
     jobs = [jobs[i] for i in np.argsort(-np.array(costs), kind="stable")]
-    pool = _pool(min(workers, os.cpu_count() or 1), ctx)
+    pool = _pool(workers, ctx)
     try:
         for name, value, sim in _map(pool, _grid_job, jobs):
             points[name].append((value, sim, None if sim is None else problem.evaluate(sim)))
@@ -498,8 +492,7 @@ def fit_candidates(problem, ctx, candidates, nominal_sim, workers=2, progress=No
         if progress and refine:
             progress(f"refined {len(refine)} candidates")
     finally:
-        if pool is not None:
-            pool.shutdown()
+        pool.close()
     return points
 
 

@@ -44,7 +44,6 @@ marked as the model's own error (``mark_model_error``).
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -163,12 +162,11 @@ def model_error(problem, ctx, nominal_sim, workers=2):
     _init(ctx)
     finer = finer_discretization(ctx["rig"], ctx["discretization"])
     jobs = [(np.zeros(len(ctx["parameters"])), finer, None), (np.zeros(len(ctx["parameters"])), None, 0.5)]
-    pool = _pool(min(workers, os.cpu_count() or 1, len(jobs)), ctx)
+    pool = _pool(workers, ctx, at_most=len(jobs))
     try:
         results = _map(pool, _rig_job, jobs)
     finally:
-        if pool is not None:
-            pool.shutdown()
+        pool.close()
     directions, block = [], {}
     described = {"discretization": {"compared": [_level_name(ctx["discretization"]), _level_name(finer)]},
                  "time_step": {"compared": [f"{ctx['nominal_dt']:.3g} s", f"{0.5 * ctx['nominal_dt']:.3g} s"]}}
@@ -297,7 +295,7 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
     k, c = len(params), len(ctx["channels"])
     tol = np.array([p.tolerance for p in params])
     _init(ctx)
-    pool = _pool(min(workers, os.cpu_count() or 1), ctx)
+    pool = _pool(workers, ctx)
     try:
         if start is None:
             coords, sim, state = np.zeros(k), nominal_sim, ctx["initial_state"]
@@ -324,8 +322,7 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
         failed = sorted(set(failed) | set(fit.failed))
         n_sims += fit.n_sims
     finally:
-        if pool is not None:
-            pool.shutdown()
+        pool.close()
     failed_names = [params[i].name for i in failed]
     X = _design(problem, sim, [sens[i] for i in active] + errs)
     _, H_inv = _solve(problem, X, np.r_[tol[active] ** 2, err_var, offset_sd**2, MAX_SHIFT_PRIOR**2],
@@ -395,7 +392,7 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     offset_sd = np.array([OFFSET_PRIOR.get(channel_kind(ch), 0.005) for ch in ctx["channels"]])
     job_ctx = dict(ctx, base_physics=[mechanism])
     _init(job_ctx)
-    pool = _pool(min(workers, os.cpu_count() or 1), job_ctx)
+    pool = _pool(workers, job_ctx)
     try:
         starts = _map(pool, _rig_job, [(np.zeros(len(params)), None, None, ctx["initial_state"]),
                                        (update["coords"], None, None, update["initial_state"])])
@@ -411,8 +408,7 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
                             MAX_JACOBIANS, lambda m: note(f"joint refit with {mechanism.name}: {m}"))
         n_sims += fit.n_sims
     finally:
-        if pool is not None:
-            pool.shutdown()
+        pool.close()
     coords, state = fit.coords, fit.state
     rig, maneuver = apply_parameters(ctx["rig"], ctx["maneuver"], params, coords)
     main = _main_of(mechanism)

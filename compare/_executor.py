@@ -1,0 +1,202 @@
+"""Where the fan-outs of simulations and cases run: local processes or a Dask cluster.
+
+One small interface (``Executor.open(initializer, initargs)`` gives a session
+whose ``map(fn, jobs)`` returns ``fn(*job)`` for every job, in order) serves
+every place that fans out work: the diagnosis's candidate, sensitivity and
+model-error simulations, and the discovery benchmark's cases. What a task
+needs besides its job (the rig, the maneuver, the recording's channels: the
+*context*) is sent once per session, not once per task: locally through the
+pool's initializer, on Dask scattered to every worker.
+
+- ``LocalExecutor(workers)``: forked processes on this machine, as before;
+  one worker runs in this process.
+- ``DaskExecutor(address)``: the ``dask.distributed`` scheduler at
+  ``address`` (``tcp://host:8786``); workers need dragline installed and
+  read nothing from this machine's disk. A worker lost mid-run has its
+  tasks run again elsewhere (Dask's own retry); a cluster left without
+  workers for ``NO_WORKER_S`` stops the run with one line, never a hang.
+
+``executor_from(workers, scheduler)`` picks one: ``scheduler`` (the
+``--scheduler`` option, else ``DRAGLINE_SCHEDULER``) means Dask.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+__all__ = ["Executor", "LocalExecutor", "DaskExecutor", "ExecutorError", "executor_from", "as_executor"]
+
+# A Dask cluster without a single worker for this long stops the run (s).
+NO_WORKER_S = 60.0
+# How often the wait for Dask results looks at the cluster (s).
+_POLL_S = 2.0
+
+
+class ExecutorError(RuntimeError):
+    """The cluster cannot run the work (no workers, unreachable scheduler): one line, exit code 1."""
+
+
+class Executor:
+    """Runs ``map(fn, jobs)`` somewhere; subclasses say where."""
+
+    kind = "abstract"
+
+    def open(self, initializer, initargs=()):
+        """A session (``map``, ``close``) whose tasks find ``initializer(*initargs)`` done."""
+        raise NotImplementedError
+
+    def describe(self):
+        """JSON-ready: ``{"kind", "address", "workers"}``."""
+        raise NotImplementedError
+
+    def limited(self, workers):
+        """The same executor with at most ``workers`` parallel tasks where that means anything."""
+        return self
+
+
+class _Serial:
+    def __init__(self, initializer, initargs):
+        initializer(*initargs)
+
+    def map(self, fn, jobs):
+        return [fn(*job) for job in jobs]
+
+    def close(self):
+        pass
+
+
+class _LocalPool:
+    def __init__(self, workers, initializer, initargs):
+        initializer(*initargs)  # the parent evaluates too (the serial parts of a fit)
+        method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+        self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
+                                         initializer=initializer, initargs=initargs)
+
+    def map(self, fn, jobs):
+        return list(self._pool.map(fn, *zip(*jobs))) if jobs else []
+
+    def close(self):
+        self._pool.shutdown()
+
+
+class LocalExecutor(Executor):
+    """Forked processes on this machine (``workers`` at once; 1 = in this process)."""
+
+    kind = "local"
+
+    def __init__(self, workers=2):
+        self.workers = max(1, int(workers))
+
+    def open(self, initializer, initargs=()):
+        workers = min(self.workers, os.cpu_count() or 1)
+        return _Serial(initializer, initargs) if workers <= 1 else _LocalPool(workers, initializer, initargs)
+
+    def limited(self, workers):
+        return LocalExecutor(min(self.workers, max(1, int(workers))))
+
+    def describe(self):
+        return {"kind": "local", "address": None, "workers": self.workers}
+
+
+# Per Dask worker process: the key of the context it last initialised from.
+_WORKER_CONTEXT = {"key": None}
+
+
+def _identity(value):
+    return value
+
+
+def _dask_task(initializer, key, initargs, fn, job):
+    if _WORKER_CONTEXT["key"] != key:
+        initializer(*initargs)
+        _WORKER_CONTEXT["key"] = key
+    return fn(*job)
+
+
+class _DaskSession:
+    def __init__(self, client, address, initializer, initargs):
+        self._client = client
+        self._address = address
+        initializer(*initargs)
+        self._initializer = initializer
+        # The context travels once, as a task of its own: every task depends on it, and if the
+        # workers holding it are lost, the scheduler runs it again (scattered data would be gone).
+        self._initargs = client.submit(_identity, tuple(initargs), pure=False)
+        self._key = f"ctx-{id(self)}-{time.monotonic_ns()}"
+
+    def map(self, fn, jobs):
+        from distributed import wait  # noqa: PLC0415 - Dask is an optional extra
+
+        futures = [self._client.submit(_dask_task, self._initializer, self._key, self._initargs, fn, tuple(job),
+                                       pure=False) for job in jobs]
+        alone_since = None
+        try:
+            while True:
+                try:
+                    wait(futures, timeout=_POLL_S)
+                    break
+                except TimeoutError:  # not done yet: is anyone still working on it?
+                    pass
+                if self._client.scheduler_info().get("workers"):
+                    alone_since = None
+                elif alone_since is None:
+                    alone_since = time.monotonic()
+                elif time.monotonic() - alone_since > NO_WORKER_S:
+                    left = sum(not f.done() for f in futures)
+                    raise ExecutorError(f"the Dask cluster at {self._address} has had no worker for "
+                                        f"{NO_WORKER_S:.0f} s; {left} of {len(futures)} tasks left undone")
+        except BaseException:
+            self._client.cancel(futures)
+            raise
+        return self._client.gather(futures)
+
+    def close(self):
+        self._client.cancel([self._initargs])
+
+
+class DaskExecutor(Executor):
+    """The ``dask.distributed`` scheduler at ``address`` (or an existing ``client``)."""
+
+    kind = "dask"
+
+    def __init__(self, address=None, client=None, timeout_s=30.0):
+        if address is None and client is None:
+            raise ValueError("a Dask executor needs a scheduler address")
+        self.address = address if client is None else client.scheduler.address
+        self._client = client
+        self._timeout_s = timeout_s
+
+    @property
+    def client(self):
+        if self._client is None:
+            try:
+                from distributed import Client  # noqa: PLC0415
+            except ImportError:
+                raise ValueError("--scheduler needs Dask: pip install 'dragline[dask]'") from None
+            try:
+                self._client = Client(self.address, timeout=self._timeout_s)
+            except (OSError, TimeoutError) as exc:
+                raise ValueError(f"cannot reach the Dask scheduler at {self.address}: "
+                                 f"{' '.join(str(exc).split())[:120]}") from None
+        return self._client
+
+    def open(self, initializer, initargs=()):
+        return _DaskSession(self.client, self.address, initializer, initargs)
+
+    def describe(self):
+        return {"kind": "dask", "address": self.address,
+                "workers": len(self.client.scheduler_info().get("workers", {}))}
+
+
+def executor_from(workers=2, scheduler=None):
+    """``DaskExecutor(scheduler)`` when a scheduler is given (or ``DRAGLINE_SCHEDULER`` is set), else local."""
+    scheduler = scheduler or os.environ.get("DRAGLINE_SCHEDULER") or None
+    return DaskExecutor(scheduler) if scheduler else LocalExecutor(workers)
+
+
+def as_executor(workers):
+    """An ``Executor`` as given, or a ``LocalExecutor`` of ``workers`` processes."""
+    return workers if isinstance(workers, Executor) else LocalExecutor(workers)
