@@ -33,16 +33,15 @@ the range's bottom, not the detection limit.
 from __future__ import annotations
 
 import math
-import multiprocessing
 import os
 import shutil
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
 from ..simulate import MECHANISMS, make_mechanism, simulate
+from ._executor import as_executor, executor_from
 
 __all__ = ["MAGNITUDES", "LIMIT_CASES", "default_cases", "realistic_cases", "bench_discovery", "summary_lines",
            "bench_command"]
@@ -134,16 +133,19 @@ def _truth_world(name, value, seed):
     return truth_rig, truth_maneuver, TRUTH_DISCRETIZATION, physics, coords
 
 
-def _run_case(name, value, seed, world="nominal", workdir=None, keep=None):
+def _run_case(name, value, seed, world="nominal", workdir=None, keep=False):
     """Make one blind session, diagnose it from its directory alone, score it here.
 
-    ``keep``: a folder where the case's ``diagnosis.json`` is kept (as
-    ``case<seed>.json``), to read why a case went the way it did.
+    ``workdir``: where the session is made (a temporary folder of the
+    machine that runs the case when None); ``keep``: return the case's
+    diagnosis document too (under ``diagnosis``).
     """
     from ..capture import default_lab_cameras, synthesize_session, write_session_dir
     from ..simulate import dig_maneuver
     from .diagnose import diagnose_path
 
+    own = workdir is None
+    workdir = tempfile.mkdtemp(prefix="dragline-case-") if own else workdir
     folder = os.path.join(workdir, f"case{seed}")
     started = time.perf_counter()
     coords = None
@@ -163,16 +165,13 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=None):
     t0 = time.perf_counter()
     try:
         doc = diagnose_path(folder, workers=1, seed=seed).doc
-        if keep is not None:
-            from .diagnose import write_diagnosis_json
-
-            os.makedirs(keep, exist_ok=True)
-            write_diagnosis_json(os.path.join(keep, f"case{seed}.json"), doc)
+        if keep:
+            out["diagnosis"] = doc  # written by the caller: a Dask worker's disk is not the user's
     except ValueError as exc:
         out.update(verdict="error", reason=str(exc), diagnosis_seconds=time.perf_counter() - t0)
         return out
     finally:
-        shutil.rmtree(folder, ignore_errors=True)
+        shutil.rmtree(workdir if own else folder, ignore_errors=True)
     out.update(verdict=doc["verdict"], reason=doc["reason"], diagnosis_seconds=time.perf_counter() - t0,
                load_seconds=doc["timing"].get("load_seconds"), simulations=doc["timing"]["simulations"])
     in_menu = name is None or (name in MECHANISMS and MECHANISMS[name].get("candidate", True))
@@ -216,6 +215,10 @@ def _calibration_errors(doc, coords):
     return out
 
 
+def _no_context():
+    """A case needs nothing besides its own arguments."""
+
+
 def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, progress=None, keep=None):
     """Run the blind discovery benchmark.
 
@@ -223,8 +226,9 @@ def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, pr
     ----------
     cases : list of (str or None, float, int), optional
         ``(mechanism, value, seed)``; default :func:`default_cases`.
-    workers : int
-        Cases run in this many processes at once (each diagnosis in one).
+    workers : int or Executor
+        Cases run in this many local processes at once (each diagnosis in
+        one), or on an ``Executor`` (a Dask cluster: one case per task).
     seed : int
         Base seed of the default cases.
     quick : bool
@@ -250,32 +254,36 @@ def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, pr
         (per mechanism), ``timing`` (diagnosis seconds: median, max).
     """
     cases = default_cases(quick, seed) if cases is None else [tuple(c) for c in cases]
-    own = workdir is None
-    workdir = tempfile.mkdtemp(prefix="dragline-discovery-") if own else workdir
-    results = []
+    executor = as_executor(workers)
+    local = executor.kind == "local"
+    own = local and workdir is None
+    workdir = tempfile.mkdtemp(prefix="dragline-discovery-") if own else (workdir if local else None)
+
+    def finished(result):
+        doc = result.pop("diagnosis", None)
+        if doc is not None:
+            from .diagnose import write_diagnosis_json
+
+            os.makedirs(keep, exist_ok=True)
+            write_diagnosis_json(os.path.join(keep, f"case{result['seed']}.json"), doc)
+        if progress:
+            progress(_case_line(result))
+
     started = time.perf_counter()
+    session = executor.open(_no_context)
     try:
-        if workers <= 1:
-            for c in cases:
-                results.append(_run_case(*c, workdir=workdir, keep=keep))
-                if progress:
-                    progress(_case_line(results[-1]))
-        else:
-            method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
-            with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method)) as pool:
-                futures = [pool.submit(_run_case, *c, workdir=workdir, keep=keep) for c in cases]
-                for f in futures:
-                    results.append(f.result())
-                    if progress:
-                        progress(_case_line(results[-1]))
+        jobs = [(*c[:3], c[3] if len(c) > 3 else "nominal", workdir, bool(keep)) for c in cases]
+        results = session.map(_run_case, jobs, each=finished)
     finally:
+        session.close()
         if own:
             shutil.rmtree(workdir, ignore_errors=True)
     wall = time.perf_counter() - started
+    workers = executor.describe()["workers"]
     worlds = sorted({r.get("world", "nominal") for r in results})
     if worlds == ["nominal"]:
-        return _summarise(results, wall, workers)
-    report = {"n_cases": len(results), "worlds": {}}
+        return dict(_summarise(results, wall, workers), executor=executor.describe())
+    report = {"n_cases": len(results), "worlds": {}, "executor": executor.describe()}
     for w in worlds:
         mine = [r for r in results if r.get("world", "nominal") == w]
         report["worlds"][w] = _summarise(mine, wall, workers)
@@ -426,7 +434,8 @@ def bench_command(args):
     """``dragline bench discovery``: returns (report, summary lines) like the other benches.
 
     Reads ``args.seed`` and, when the bench command has them, ``args.quick``,
-    ``args.limits`` (the ``LIMIT_CASES`` instead), ``args.workers`` and
+    ``args.limits`` (the ``LIMIT_CASES`` instead), ``args.workers``,
+    ``args.scheduler`` (a Dask cluster; also ``DRAGLINE_SCHEDULER``) and
     ``args.keep_diagnoses``.
     """
     import sys
@@ -437,7 +446,8 @@ def bench_command(args):
     elif getattr(args, "realism", False):
         cases = realistic_cases(args.seed, quick=bool(getattr(args, "quick", False)))
     report = bench_discovery(cases=cases,
-                             workers=getattr(args, "workers", 2) or 2, seed=args.seed,
+                             workers=executor_from(getattr(args, "workers", 2) or 2, getattr(args, "scheduler", None)),
+                             seed=args.seed,
                              quick=bool(getattr(args, "quick", False)),
                              progress=lambda line: print(line, file=sys.stderr),
                              keep=getattr(args, "keep_diagnoses", None))

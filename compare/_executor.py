@@ -1,7 +1,8 @@
 """Where the fan-outs of simulations and cases run: local processes or a Dask cluster.
 
 One small interface (``Executor.open(initializer, initargs)`` gives a session
-whose ``map(fn, jobs)`` returns ``fn(*job)`` for every job, in order) serves
+whose ``map(fn, jobs, each=None)`` returns ``fn(*job)`` for every job, in
+order, handing each result to ``each`` as it comes) serves
 every place that fans out work: the diagnosis's candidate, sensitivity and
 model-error simulations, and the discovery benchmark's cases. What a task
 needs besides its job (the rig, the maneuver, the recording's channels: the
@@ -57,12 +58,22 @@ class Executor:
         return self
 
 
+def _collect(results, each):
+    """The results in order, each handed to ``each`` as it comes (progress lines)."""
+    out = []
+    for result in results:
+        out.append(result)
+        if each is not None:
+            each(result)
+    return out
+
+
 class _Serial:
     def __init__(self, initializer, initargs):
         initializer(*initargs)
 
-    def map(self, fn, jobs):
-        return [fn(*job) for job in jobs]
+    def map(self, fn, jobs, each=None):
+        return _collect((fn(*job) for job in jobs), each)
 
     def close(self):
         pass
@@ -75,8 +86,8 @@ class _LocalPool:
         self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
                                          initializer=initializer, initargs=initargs)
 
-    def map(self, fn, jobs):
-        return list(self._pool.map(fn, *zip(*jobs))) if jobs else []
+    def map(self, fn, jobs, each=None):
+        return _collect(self._pool.map(fn, *zip(*jobs)), each) if jobs else []
 
     def close(self):
         self._pool.shutdown()
@@ -127,31 +138,36 @@ class _DaskSession:
         self._initargs = client.submit(_identity, tuple(initargs), pure=False)
         self._key = f"ctx-{id(self)}-{time.monotonic_ns()}"
 
-    def map(self, fn, jobs):
-        from distributed import wait  # noqa: PLC0415 - Dask is an optional extra
-
+    def map(self, fn, jobs, each=None):
         futures = [self._client.submit(_dask_task, self._initializer, self._key, self._initargs, fn, tuple(job),
                                        pure=False) for job in jobs]
-        alone_since = None
         try:
-            while True:
-                try:
-                    wait(futures, timeout=_POLL_S)
-                    break
-                except TimeoutError:  # not done yet: is anyone still working on it?
-                    pass
-                if self._client.scheduler_info().get("workers"):
-                    alone_since = None
-                elif alone_since is None:
-                    alone_since = time.monotonic()
-                elif time.monotonic() - alone_since > NO_WORKER_S:
-                    left = sum(not f.done() for f in futures)
-                    raise ExecutorError(f"the Dask cluster at {self._address} has had no worker for "
-                                        f"{NO_WORKER_S:.0f} s; {left} of {len(futures)} tasks left undone")
+            for future in futures:
+                self._wait(future, futures)
+            return _collect((future.result() for future in futures), each)
         except BaseException:
             self._client.cancel(futures)
             raise
-        return self._client.gather(futures)
+
+    def _wait(self, future, futures):
+        """Until ``future`` is done; a cluster without workers for NO_WORKER_S ends the wait."""
+        from distributed import wait  # noqa: PLC0415 - Dask is an optional extra
+
+        alone_since = None
+        while True:
+            try:
+                wait([future], timeout=_POLL_S)
+                return
+            except TimeoutError:  # not done yet: is anyone still working on it?
+                pass
+            if self._client.scheduler_info().get("workers"):
+                alone_since = None
+            elif alone_since is None:
+                alone_since = time.monotonic()
+            elif time.monotonic() - alone_since > NO_WORKER_S:
+                left = sum(not f.done() for f in futures)
+                raise ExecutorError(f"the Dask cluster at {self._address} has had no worker for "
+                                    f"{NO_WORKER_S:.0f} s; {left} of {len(futures)} tasks left undone")
 
     def close(self):
         self._client.cancel([self._initargs])

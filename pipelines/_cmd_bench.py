@@ -6,7 +6,7 @@ import sys
 
 from dragline.capture import json_text, write_json
 
-from ._options import check_output_path
+from ._options import add_scheduler_option, check_output_path
 
 
 def add_parser(sub):
@@ -22,6 +22,7 @@ def add_parser(sub):
                    help="discovery: truth rigs drawn within the rig's tolerances, simulated finer than the "
                         "diagnosis, with out-of-menu physics among the cases")
     p.add_argument("--workers", type=int, default=2, help="discovery: parallel processes")
+    add_scheduler_option(p)
     p.add_argument("--keep-diagnoses", metavar="DIR",
                    help="discovery: keep every case's diagnosis.json in DIR (case<seed>.json)")
 

@@ -33,6 +33,10 @@ class RunSection(_Section):
     seed: int = Field(0, ge=0, le=2**32 - 1, description="seed of the built-in synthetic session")
     study: bool = Field(True, description="discretization study (the paper's Fig. 21) in the report")
     diagnose: bool = Field(True, description="diagnose the missing physics after the comparison")
+    scheduler: Optional[str] = Field(None, min_length=1, pattern=r"^\S+$",
+                                     description="Dask scheduler address (tcp://host:8786) that runs the "
+                                                 "diagnosis's simulations; default: $DRAGLINE_SCHEDULER, else "
+                                                 "two local processes")
 
 
 class SimulateSection(_Section):

@@ -244,12 +244,14 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
     if config["run"]["diagnose"]:
         from dragline.compare import (
             diagnose,
+            executor_from,
             write_diagnosis_json,
             write_diagnosis_report,
         )
 
-        found = stage("diagnose the missing physics", diagnose, measured, maneuver, rig, discretization, workers=2,
-                      seed=seed)
+        executor = executor_from(2, config["run"].get("scheduler"))
+        found = stage("diagnose the missing physics", diagnose, measured, maneuver, rig, discretization,
+                      workers=executor, seed=seed)
         write_diagnosis_json(tmp / "diagnosis.json", found.doc)
         write_diagnosis_report(tmp / "diagnosis.pdf", found)
         files["diagnosis"] = str(tmp / "diagnosis.json")

@@ -28,6 +28,7 @@ from dragline.pipelines.cli import main
     ('[simulate]\ndiscretization = [0, 5, 12, 4, 2, 3]\n', "[simulate] discretization", "[0, 5, 12, 4, 2, 3]"),
     ('[simulate]\nrig = ""\n', "[simulate] rig", "''"),
     ("run = 5\n", "[run]", "5"),
+    ('[run]\nscheduler = "tcp://host:8786 extra"\n', "[run] scheduler", "'tcp://host:8786 extra'"),
 ])
 def test_a_bad_value_exits_2_with_one_line_naming_file_key_and_value(tmp_path, capsys, body, key, value):
     config = tmp_path / "lab.toml"
@@ -44,7 +45,7 @@ def test_a_valid_config_is_read_with_its_values_and_the_defaults(tmp_path):
     config = tmp_path / "lab.toml"
     config.write_text('[run]\nstudy = false\nseed = 7\n[reconstruct]\nsmoothing = "savgol"\nmax_gap = 0\n')
     got = read_config(config)
-    assert got["run"] == {"seed": 7, "study": False, "diagnose": True}
+    assert got["run"] == {"seed": 7, "study": False, "diagnose": True, "scheduler": None}
     assert got["reconstruct"] == {"method": "paper", "smoothing": "savgol", "max_gap": 0}
     assert got["simulate"]["discretization"] == "baseline"
 
