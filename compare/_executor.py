@@ -141,10 +141,17 @@ class _DaskSession:
     def map(self, fn, jobs, each=None):
         futures = [self._client.submit(_dask_task, self._initializer, self._key, self._initargs, fn, tuple(job),
                                        pure=False) for job in jobs]
+        from distributed import KilledWorker  # noqa: PLC0415
+
         try:
             for future in futures:
                 self._wait(future, futures)
             return _collect((future.result() for future in futures), each)
+        except KilledWorker as exc:
+            self._client.cancel(futures)
+            raise ExecutorError(f"Dask task {exc.task} was running on {exc.allowed_failures + 1} workers that "
+                                "died under it; the run stops rather than lose more (out of memory on the "
+                                "workers?)") from None
         except BaseException:
             self._client.cancel(futures)
             raise
