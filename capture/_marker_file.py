@@ -79,6 +79,26 @@ class MarkerFile:
 
 
 MARKER_FILE_EXTENSIONS = (".csv", ".c3d", ".trc")
+# Frame numbers may skip rows (gaps filled with NaN), up to this: span <= factor x rows + missing rows.
+MAX_SPAN_FACTOR = 2
+MAX_MISSING_ROWS = 10_000
+
+
+def frame_span(path, frames, lines=None):
+    """Frames from the first to the last number, checked against the rows the file holds.
+
+    A span far beyond the rows is a typo in a frame number (and would fill
+    memory with NaN frames): refused, naming the biggest jump (and its line,
+    when ``lines`` gives each row's).
+    """
+    frames = np.asarray(frames)
+    span = int(frames[-1] - frames[0]) + 1
+    if span > MAX_SPAN_FACTOR * len(frames) + MAX_MISSING_ROWS:
+        k = int(np.argmax(np.diff(frames))) + 1
+        where = f"line {lines[k]}: " if lines is not None else ""
+        raise ValueError(f"{path}: {where}frame {frames[k]} after frame {frames[k - 1]}: the frame numbers span "
+                         f"{span} frames for {len(frames)} rows (a typo in a frame number?)")
+    return span
 
 
 def read_marker_file(path):
@@ -117,7 +137,7 @@ def read_marker_file(path):
         raise ValueError(f"{path}: the Trajectories section has no frames")
     if np.any(np.diff(frame) <= 0):
         raise ValueError(f"{path}: frame numbers are not increasing")
-    full = np.full((int(frame[-1] - frame[0]) + 1,) + positions.shape[1:], np.nan)
+    full = np.full((frame_span(path, frame),) + positions.shape[1:], np.nan)
     full[frame - frame[0]] = positions
     return MarkerFile(path=path, format="vicon_csv", names=names, positions=full,
                       rate_hz=float(export.trajectories.rate_hz), first_frame=int(frame[0]))

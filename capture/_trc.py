@@ -23,7 +23,7 @@ import os
 import numpy as np
 
 from ._atomic import atomic_file
-from ._marker_file import MAX_FRAMES, MarkerFile, metres_per_unit
+from ._marker_file import MAX_FRAMES, MarkerFile, frame_span, metres_per_unit
 
 __all__ = ["read_trc", "write_trc", "is_trc"]
 
@@ -111,7 +111,7 @@ def read_trc(path):
     if dup:
         _fail(path, 4, f"marker '{dup[0]}' appears twice")
     width = 2 + 3 * n_markers
-    frames, rows = [], []
+    frames, rows, row_lines = [], [], []
     for lineno, line in enumerate(lines[5:], start=6):
         if not line.strip():
             continue
@@ -133,12 +133,11 @@ def read_trc(path):
                 row[k] = _number(path, lineno, cell, "coordinate")
         frames.append(int(frame))
         rows.append(row)
+        row_lines.append(lineno)
     if not rows:
         raise ValueError(f"{path}: the TRC file has no frames")
     frames = np.array(frames)
-    n = int(frames[-1] - frames[0]) + 1
-    if n > MAX_FRAMES:
-        raise ValueError(f"{path}: frame numbers span {n} frames, more than this tool reads")
+    n = frame_span(path, frames, row_lines)
     positions = np.full((n, n_markers, 3), np.nan)
     positions[frames - frames[0]] = np.array(rows).reshape(-1, n_markers, 3) * scale
     positions[np.isnan(positions).any(axis=-1)] = np.nan

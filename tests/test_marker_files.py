@@ -195,3 +195,31 @@ def test_a_c3d_of_another_subject_names_the_missing_markers(tmp_path, capsys):
     assert main(["diagnose", str(POSE2SIM), "--json", str(tmp_path / "d.json")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "pose2sim_static_trial.trc: missing" in err[0]
+
+
+def test_a_frame_number_typo_is_refused_before_memory_is_spent(tmp_path):
+    """Found by a long byte-level property run: a TRC frame number grown by a few digits made the reader
+    allocate the whole span of frames (24 GB before the kernel stopped it). Gaps in the frame numbers
+    stay gaps; a span far past the rows the file holds names the jump."""
+    lines = POSE2SIM.read_text().splitlines()
+    cells = lines[8].split("\t")
+    cells[0] = "40000000"  # the 4th data row's frame number, digits added
+    bad = lines[:8] + ["\t".join(cells)] + [line.replace(line.split("\t")[0], str(40000000 + k), 1)
+                                            for k, line in enumerate(lines[9:], 1) if line.strip()]
+    (tmp_path / "typo.trc").write_text("\n".join(bad) + "\n")
+    with pytest.raises(ValueError, match=r"typo.trc: line 9: frame 40000000 after frame 3: the frame numbers span "
+                                         r"\d+ frames for 12 rows"):
+        read_trc(tmp_path / "typo.trc")
+    gapped = lines[:8] + [line.replace(line.split("\t")[0], str(int(line.split("\t")[0]) + 5), 1)
+                          for line in lines[8:] if line.strip()]
+    (tmp_path / "gap.trc").write_text("\n".join(gapped) + "\n")
+    m = read_trc(tmp_path / "gap.trc")  # five frames missing: kept as unseen frames
+    assert m.positions.shape[0] == 17 and np.isnan(m.positions[3:8]).all()
+
+    names = [f"rig:m{k}" for k in range(3)]
+    pos = np.zeros((20, 3, 3))
+    write_vicon_csv(tmp_path / "typo.csv", names, pos, 100.0)
+    text = (tmp_path / "typo.csv").read_text().replace("\n20,0,", "\n90000020,0,")
+    (tmp_path / "typo.csv").write_text(text)
+    with pytest.raises(ValueError, match=r"typo.csv: frame 90000020 after frame 19: the frame numbers span"):
+        read_marker_file(tmp_path / "typo.csv")
