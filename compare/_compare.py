@@ -35,6 +35,7 @@ from ..simulate import (
 from ._align import align_tables, channel_status, check_table, estimate_time_offset, reels_stop_time
 from ._decay import free_decay, matrix_pencil
 from ._metrics import channel_metrics, peak, rms_error
+from ._executor import as_executor
 from ._paper import DIG_PEAKS, PAPER_SOURCE, SPREADER_BAR_X_OFFSET
 
 __all__ = [
@@ -444,8 +445,25 @@ def compare_tables(measured, simulated, time_offset="auto", free_decay_start=Non
     return out
 
 
+_STUDY = {}
+
+
+def _study_context(ctx):
+    _STUDY.clear()
+    _STUDY.update(ctx)
+
+
+def _study_level(level):
+    c = _STUDY
+    try:
+        result = simulate(c["rig"], c["maneuver"], level, c["physics"], duration=c["duration"], rate_hz=c["rate_hz"])
+    except (SimulationError, StaticsError) as exc:  # a blow-up, or no static pose at this level
+        return level, {"table": None, "n_state": None, "error": " ".join(str(exc).split())}
+    return level, {"table": result.table, "n_state": int(result.model.n_state), "error": None}
+
+
 def discretization_study(rig=None, maneuver=None, physics=(), duration=10.0, rate_hz=200.0,
-                         levels=DISCRETIZATION_LEVELS):
+                         levels=DISCRETIZATION_LEVELS, workers=1):
     """Run the model at each discretization level (the paper's Fig. 21).
 
     Parameters
@@ -454,21 +472,23 @@ def discretization_study(rig=None, maneuver=None, physics=(), duration=10.0, rat
         As for :func:`dragline.simulate.simulate`.
     levels : sequence of str
         Discretization levels, default low, baseline, medium, high.
+    workers : int or Executor
+        Where the levels run (``compare.executor_from``); one at a time in
+        this process by default.
 
     Returns
     -------
     dict
         Level -> ``{"table": DataFrame or None, "n_state": int or None,
-        "error": str or None}``; a level whose integration blows up is kept
-        with its error message (and shown as such in the report): a blow-up
-        (``SimulationError``) or a static pose that cannot be found.
+        "error": str or None}``, in the order of ``levels``; a level whose
+        integration blows up is kept with its error message (and shown as
+        such in the report): a blow-up (``SimulationError``) or a static
+        pose that cannot be found.
     """
-    out = {}
-    for level in levels:
-        try:
-            result = simulate(rig, maneuver, level, physics, duration=duration, rate_hz=rate_hz)
-        except (SimulationError, StaticsError) as exc:  # a blow-up, or no static pose at this level
-            out[level] = {"table": None, "n_state": None, "error": " ".join(str(exc).split())}
-            continue
-        out[level] = {"table": result.table, "n_state": int(result.model.n_state), "error": None}
-    return out
+    ctx = {"rig": rig, "maneuver": maneuver, "physics": list(physics), "duration": duration, "rate_hz": rate_hz}
+    session = as_executor(workers).open(_study_context, (ctx,))
+    try:
+        done = dict(session.map(_study_level, [(level,) for level in reversed(levels)]))  # finest (longest) first
+    finally:
+        session.close()
+    return {level: done[level] for level in levels}

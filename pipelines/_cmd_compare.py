@@ -87,7 +87,7 @@ def run(args):
             raise ValueError("the simulated table ends before the maneuver starts; cannot size the study")
         if not args.quiet:
             print("discretization study: simulating low, baseline, medium, high ...", file=sys.stderr)
-        study = discretization_study(rig, maneuver, physics, duration=duration, rate_hz=rate)
+        study = discretization_study(rig, maneuver, physics, duration=duration, rate_hz=rate, workers=2)
 
     metrics = compare_tables(measured, simulated, time_offset=offset, free_decay_start=args.free_decay_start,
                              max_offset=args.max_offset, study=study)

@@ -232,7 +232,8 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
     write_trajectory_csv(tmp / "simulated.csv", simulated)
     files["simulated"] = str(tmp / "simulated.csv")
 
-    studied = stage("discretization study", discretization_study, rig, maneuver, duration=duration) if study else None
+    studied = stage("discretization study", discretization_study, rig, maneuver, duration=duration,
+                    workers=2) if study else None
     metrics = stage("compare", compare_tables, measured, simulated, study=studied)
     write_json(tmp / "metrics.json", metrics)
     files["metrics"] = str(tmp / "metrics.json")

@@ -385,3 +385,13 @@ def test_discretization_study_runs_the_model_per_level():
     assert run["error"] is None and run["n_state"] > 0
     assert run["table"]["time"].iloc[-1] == pytest.approx(0.5)
     assert np.isfinite(run["table"]["bucket.pitch"]).all()
+
+
+def test_discretization_study_levels_run_in_parallel_give_the_same_tables():
+    serial = discretization_study(levels=("low", "baseline"), duration=0.3)
+    parallel = discretization_study(levels=("low", "baseline"), duration=0.3, workers=2)
+    assert list(parallel) == ["low", "baseline"]  # the caller's order, though the finest runs first
+    assert serial["low"]["n_state"] < serial["baseline"]["n_state"]
+    for level in ("low", "baseline"):
+        assert parallel[level]["n_state"] == serial[level]["n_state"]
+        pd.testing.assert_frame_equal(parallel[level]["table"], serial[level]["table"])
