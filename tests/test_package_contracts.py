@@ -9,7 +9,6 @@
 
 import ast
 import re
-from pathlib import Path
 
 from conftest import REPO
 
@@ -51,11 +50,11 @@ def test_the_checker_sees_a_private_crossing(tmp_path):
 
 
 def test_code_and_tests_cite_only_documents_in_the_repository():
-    outside = re.compile(r"\bDESIGN\s+\d|\.\./shared|/work/shared|shared/(?:DESIGN|seed|data)")
+    # The brief's folder beside a checkout, named in pieces so this file does not cite it itself.
+    brief = "sha" + "red"
+    outside = re.compile(rf"\bDESIGN\s+\d|\.\./{brief}\b|/{brief}/|\b{brief}/(?:DESIGN|seed|data)")
     found = []
     for path in [*_sources(), *sorted((REPO / "tests").glob("*.py")), *sorted((REPO / "tools").glob("*.py"))]:
-        if path.name == "test_package_contracts.py":
-            continue
         for number, line in enumerate(path.read_text().splitlines(), 1):
             if outside.search(line):
                 found.append(f"{path.relative_to(REPO)}:{number}: {line.strip()}")

@@ -424,10 +424,6 @@ def _pool(workers, ctx, at_most=None):
     return (executor if at_most is None else executor.limited(at_most)).open(_init, (ctx,))
 
 
-def _map(pool, fn, jobs):
-    return pool.map(fn, jobs)
-
-
 def fit_candidates(problem, ctx, candidates, nominal_sim, workers=2, progress=None):
     """Grid, then refine, every candidate; collect every evaluated point.
 
@@ -469,7 +465,7 @@ def fit_candidates(problem, ctx, candidates, nominal_sim, workers=2, progress=No
     jobs = [jobs[i] for i in np.argsort(-np.array(costs), kind="stable")]
     pool = _pool(workers, ctx)
     try:
-        for name, value, sim in _map(pool, _grid_job, jobs):
+        for name, value, sim in pool.map(_grid_job, jobs):
             points[name].append((value, sim, None if sim is None else problem.evaluate(sim)))
         if progress:
             progress(f"grid of {len(jobs)} simulations done")
@@ -487,7 +483,7 @@ def fit_candidates(problem, ctx, candidates, nominal_sim, workers=2, progress=No
         if refine:
             keep = np.array(gains) >= REFINE_FRACTION * max(gains)
             refine = [job for job, k in zip(refine, keep) if k]
-        for name, pts in _map(pool, _refine_job, refine):
+        for name, pts in pool.map(_refine_job, refine):
             points[name].extend((v, s, None if s is None else problem.evaluate(s)) for v, s in pts)
         if progress and refine:
             progress(f"refined {len(refine)} candidates")

@@ -56,7 +56,7 @@ from ...simulate import (
     simulate,
 )
 from .._compare import channel_kind
-from ._hypotheses import _init, _map, _pool, channels_on
+from ._hypotheses import _init, _pool, channels_on
 
 __all__ = ["OFFSET_PRIOR", "update_model", "joint_refit", "model_error", "finer_discretization",
            "nuisance_correlation", "mark_model_error"]
@@ -164,7 +164,7 @@ def model_error(problem, ctx, nominal_sim, workers=2):
     jobs = [(np.zeros(len(ctx["parameters"])), finer, None), (np.zeros(len(ctx["parameters"])), None, 0.5)]
     pool = _pool(workers, ctx, at_most=len(jobs))
     try:
-        results = _map(pool, _rig_job, jobs)
+        results = pool.map(_rig_job, jobs)
     finally:
         pool.close()
     directions, block = [], {}
@@ -394,7 +394,7 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     _init(job_ctx)
     pool = _pool(workers, job_ctx)
     try:
-        starts = _map(pool, _rig_job, [(np.zeros(len(params)), None, None, ctx["initial_state"]),
+        starts = pool.map(_rig_job, [(np.zeros(len(params)), None, None, ctx["initial_state"]),
                                        (update["coords"], None, None, update["initial_state"])])
         n_sims = 2
         options = [(_objective_at(problem, sim, x, tol, offset_sd, errs)[0], x, sim, st)
@@ -497,7 +497,7 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
         key = coords.tobytes()
         if key not in cache:
             guess = best.get("state", fit.state)
-            cache[key] = _map(pool, _rig_job, [(coords, None, None, guess)])[0]
+            cache[key] = pool.map(_rig_job, [(coords, None, None, guess)])[0]
             fit.n_sims += 1
         return coords, cache[key]
 
@@ -578,7 +578,7 @@ def _sensitivities(pool, coords, which, tol, sim, state, previous):
         jobs.append((x, None, None, state))
     out = list(previous)
     failed = []
-    for i, (s_, _) in zip(which, _map(pool, _rig_job, jobs)):
+    for i, (s_, _) in zip(which, pool.map(_rig_job, jobs)):
         if s_ is None:
             failed.append(int(i))
             out[i] = np.zeros_like(sim)
