@@ -25,7 +25,9 @@ def add_parser(sub):
     add_model_options(p)
     p.add_argument("--duration", type=number(), default=10.0, metavar="S", help="simulated time (s, default 10)")
     p.add_argument("--rate", type=number(), default=200.0, metavar="HZ", help="output rate (Hz, default 200)")
-    p.add_argument("--dt", type=number(), default=None, metavar="S", help="fixed integration step (s; default: RK4's stability limit, cut as the rig stiffens)")
+    p.add_argument("--dt", type=number(), default=None, metavar="S", help="fixed integration step (s; default: the integrator's stability limit, cut as the rig stiffens)")
+    p.add_argument("--integrator", choices=("verlet", "rk4"), default="verlet",
+                   help="velocity Verlet (default: one right-hand side a step) or classical RK4 (the reference)")
     p.add_argument("--out", required=True, metavar="TRAJ.csv", help="trajectory table to write")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
 
@@ -40,13 +42,13 @@ def run(args):
     t0 = time.perf_counter()
     try:
         result = simulate(rig, maneuver, discretization, physics, duration=args.duration, rate_hz=args.rate,
-                          dt=args.dt)
+                          dt=args.dt, integrator=args.integrator)
     except SimulationError as exc:
         if args.dt is None:
             raise  # the tool's own step blew up: a fault of the tool (exit 1)
         # The user's fixed step: an explicit step above the stability limit
         # grows without bound (a fuzzed --dt 1e300 became 0.02 s and blew up).
-        raise ValueError(f"--dt {args.dt:g}: {exc}; a fixed step must stay below RK4's stability limit "
+        raise ValueError(f"--dt {args.dt:g}: {exc}; a fixed step must stay below the integrator's stability limit "
                          "(leave --dt out and the step follows it)") from None
     except ValueError as exc:
         text = str(exc)

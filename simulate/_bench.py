@@ -23,7 +23,7 @@ from dragline.simulate import assemble, dig_maneuver, load_rig, simulate
 from dragline.simulate import _kernel
 from dragline.simulate._statics import solve_statics
 from dragline.simulate._time_step import start_time_step
-from dragline.simulate._tracked import integrate_tracked
+from dragline.simulate._tracked import RK4, VERLET, integrate_tracked
 
 level, repeats, duration = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
 rig, man = load_rig(), dig_maneuver()
@@ -32,41 +32,53 @@ t = time.perf_counter(); eq = solve_statics(model); statics = [time.perf_counter
 m = model.kernel_tuple(); work = _kernel.make_work(m)
 out_dt = 1 / 200
 n_rec = int(round(duration * 200))
-def run():
+methods = {"verlet": VERLET, "rk4": RK4}
+def run(name):
     # what simulate() does after the statics: the step at the start, then the tracked run
     t = time.perf_counter()
-    dt0, lam0 = start_time_step(model, eq.state, 0.0)
+    dt0, lam0 = start_time_step(model, eq.state, 0.0, integrator=name)
     chosen = time.perf_counter() - t
-    rec, sub, status, _, _ = integrate_tracked(eq.state, 0.0, out_dt, n_rec, dt0, lam0, m, work, 100.0)
+    rec, sub, status, _, _ = integrate_tracked(eq.state, 0.0, out_dt, n_rec, dt0, lam0, m, work, 100.0,
+                                               50_000_000, methods[name])
     assert status == 0
     return time.perf_counter() - t, chosen, rec, sub
-integrate_tracked(eq.state, 0.0, out_dt, 1, 1e-4, 1.0, m, work, 100.0)  # warm-up: loads the compiled kernel
-walls, chosen = [], []
-for _ in range(repeats):
-    wall, pick, rec, sub = run()
-    walls.append(wall); chosen.append(pick)
+for name in methods:  # warm-up: loads the compiled kernel
+    integrate_tracked(eq.state, 0.0, out_dt, 1, 1e-4, 1.0, m, work, 100.0, 50_000_000, methods[name])
+walls = {name: [] for name in methods}
+chosen, last = [], {}
+for _ in range(repeats):  # alternating, so load on the machine falls on both alike
+    for name in methods:
+        wall, pick, rec, sub = run(name)
+        walls[name].append(wall); chosen.append(pick); last[name] = (rec, sub)
 for _ in range(max(0, repeats - 1)):
     t = time.perf_counter(); solve_statics(model); statics.append(time.perf_counter() - t)
 calls = []
 for _ in range(max(1, repeats // 2)):
     t = time.perf_counter(); simulate(rig, man, level, duration=duration); calls.append(time.perf_counter() - t)
-smallest = out_dt / sub.max()
-per = 8 * int(sub.max())
-ref, status, _, _ = _kernel.integrate(eq.state, 0.0, out_dt / per, n_rec * per, per, m, work, 100.0)
-pos = 1e3 * np.max(np.linalg.norm(rec[:, 0:3] - ref[:, 0:3], axis=1))
-pitch = np.degrees(np.max(np.abs(rec[:, 7] - ref[:, 7])))
-print(json.dumps({
-    "wall_s": float(np.median(walls)), "wall_runs_s": walls,
-    "step_selection_s": float(np.median(chosen)),
-    "statics_s": float(np.median(statics)),
-    "simulate_call_s": float(np.median(calls)),
-    "real_time_factor": duration / float(np.median(walls)),
-    "states": model.n_state, "dt_start_s": out_dt / int(sub[0]), "dt_smallest_s": smallest,
-    "steps": int(sub.sum()),
-    "error_bucket_position_mm": float(pos), "error_bucket_pitch_deg": float(pitch),
-    "reference": "same level, fixed step = smallest tracked step / 8",
-    "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
-}))
+smallest = min(out_dt / last[name][1].max() for name in methods)
+per = int(np.ceil(out_dt / (smallest / 8)))
+ref, _, status, _, _ = integrate_tracked(eq.state, 0.0, out_dt, n_rec, out_dt / per, np.inf, m, work, 100.0,
+                                         50_000_000, VERLET)
+rk4_fine, _, _, _, _ = integrate_tracked(eq.state, 0.0, out_dt, n_rec, out_dt / per, np.inf, m, work, 100.0,
+                                         50_000_000, RK4)
+def errors(rec):
+    return (1e3 * float(np.max(np.linalg.norm(rec[:, 0:3] - ref[:, 0:3], axis=1))),
+            float(np.degrees(np.max(np.abs(rec[:, 7] - ref[:, 7])))))
+out = {"statics_s": float(np.median(statics)), "simulate_call_s": float(np.median(calls)),
+       "step_selection_s": float(np.median(chosen)), "states": model.n_state,
+       "reference": "Verlet at a fixed step of the smallest tracked step / 8",
+       "reference_vs_rk4_same_step_mm": errors(rk4_fine)[0],
+       "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}
+for name in methods:
+    rec, sub = last[name]
+    pos, pitch = errors(rec)
+    out[name] = {"wall_s": float(np.median(walls[name])), "wall_runs_s": walls[name],
+                 "real_time_factor": duration / float(np.median(walls[name])),
+                 "dt_start_s": out_dt / int(sub[0]), "dt_smallest_s": out_dt / int(sub.max()),
+                 "steps": int(sub.sum()), "error_bucket_position_mm": pos, "error_bucket_pitch_deg": pitch}
+out["wall_s"] = out["verlet"]["wall_s"]
+out["rk4_over_verlet"] = out["rk4"]["wall_s"] / out["verlet"]["wall_s"]
+print(json.dumps(out))
 """
 
 _COLD_SCRIPT = r"""
@@ -91,12 +103,16 @@ def bench_simulate(levels=LEVELS, repeats=5, duration=10.0, moordyn=True):
     Returns
     -------
     dict
-        ``{level: {wall_s, statics_s, real_time_factor, error_bucket_position_mm,
-        error_bucket_pitch_deg, peak_memory_mb, ...}, "compile": {...},
-        "moordyn": {...}}``. ``wall_s`` is what ``simulate`` does after
-        the statics (the starting step from the spectrum, then the tracked
-        RK4 run; median of ``repeats``), ``statics_s`` the equilibrium
-        before it, ``simulate_call_s`` one whole ``simulate()`` call.
+        ``{level: {wall_s, statics_s, simulate_call_s, rk4_over_verlet,
+        verlet: {wall_s, steps, error_bucket_position_mm,
+        error_bucket_pitch_deg, ...}, rk4: {...}, ...}, "compile": {...},
+        "moordyn": {...}}``. Per integrator, ``wall_s`` is what ``simulate``
+        does after the statics (the starting step from the spectrum, then
+        the tracked run; median of ``repeats``, the two integrators run
+        alternately); errors are against Verlet at an eighth of the smallest
+        step. ``wall_s`` of the level is Verlet's (``simulate``'s default),
+        ``statics_s`` the equilibrium before it, ``simulate_call_s`` one
+        whole ``simulate()`` call.
     """
     report = {"duration_s": duration, "repeats": repeats, "cpu_count": os.cpu_count()}
     with tempfile.TemporaryDirectory() as cache:
@@ -127,11 +143,12 @@ def summary_lines(report):
     for level in LEVELS:
         if level in report:
             r = report[level]
-            lines.append(
-                f"{level:9s} {r['states']:4d} states  wall {r['wall_s']:.2f} s (x{r['real_time_factor']:.1f} real time)  "
-                f"statics {r['statics_s']:.2f} s  whole call {r['simulate_call_s']:.2f} s  {r['steps']} steps  error {r['error_bucket_position_mm']:.4f} mm / {r['error_bucket_pitch_deg']:.5f} deg  "
-                f"peak {r['peak_memory_mb']:.0f} MB"
-            )
+            lines.append(f"{level:9s} {r['states']:4d} states  statics {r['statics_s']:.2f} s  whole call "
+                         f"{r['simulate_call_s']:.2f} s  peak {r['peak_memory_mb']:.0f} MB  RK4 / Verlet {r['rk4_over_verlet']:.2f}")
+            for name in ("verlet", "rk4"):
+                x = r[name]
+                lines.append(f"  {name:7s} wall {x['wall_s']:.2f} s (x{x['real_time_factor']:.1f} real time)  {x['steps']} steps  "
+                             f"error {x['error_bucket_position_mm']:.4f} mm / {x['error_bucket_pitch_deg']:.5f} deg")
     return lines
 
 

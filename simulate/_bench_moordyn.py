@@ -349,9 +349,10 @@ def time_to_error(walls, errors, level):
     return float(np.exp(np.log(w[j - 1]) + f * (np.log(w[j]) - np.log(w[j - 1])))), False
 
 
-def _ours(rig, maneuver, y0, dt, duration):
+def _ours(rig, maneuver, y0, dt, duration, integrator="rk4"):
     t0 = time.perf_counter()
-    r = simulate(rig, maneuver, duration=duration, rate_hz=1.0 / RECORD_DT, dt=dt, dissipation=False, initial_state=y0)
+    r = simulate(rig, maneuver, duration=duration, rate_hz=1.0 / RECORD_DT, dt=dt, dissipation=False, initial_state=y0,
+                 integrator=integrator)
     wall = time.perf_counter() - t0
     return r.rope_nodes("line"), wall, r.dt
 
@@ -482,7 +483,7 @@ def bench_moordyn(particles=12, repeats=3, duration=10.0, levels_mm=(1.0, 0.1), 
     out["reference"] = {"solver": "ours RK4", "step_s": base / 16, "wall_s": ref_wall}
     curves = []
     same = True
-    ours_default, default_wall, default_step = _ours(rig, smooth, eq.state, None, duration)
+    ours_default, default_wall, default_step = _ours(rig, smooth, eq.state, None, duration, "verlet")
     nudged = eq.state.copy()
     nudged[2] += 1e-6  # the first particle 1 um lower: how sensitive is this drive?
     out["start_nudged_1um_mm"] = _max_error_mm(_ours(rig, smooth, nudged, base, duration)[0], ours_default)
@@ -502,6 +503,8 @@ def bench_moordyn(particles=12, repeats=3, duration=10.0, levels_mm=(1.0, 0.1), 
         out["reference"]["moordyn_rk4_step_s"] = base / 8
         out["reference"]["moordyn_rk4_error_mm"] = _max_error_mm(finest, ref)
         runs = [("ours", "RK4", f, lambda dt: _ours(rig, smooth, eq.state, dt, duration)) for f in (1, 2, 4)]
+        # Verlet is stable to 2 / omega against RK4's 2.83 / omega: from half the base step
+        runs += [("ours", "Verlet", f, lambda dt: _ours(rig, smooth, eq.state, dt, duration, "verlet")) for f in (2, 4, 8)]
         runs += [("moordyn", "RK4", f, lambda dt: md_run(dt, "RK4")) for f in (1, 2, 4)]
         runs += [("moordyn", "RK2", f, lambda dt: md_run(dt, "RK2")) for f in (4, 8, 16)]
         results = {i: [] for i in range(len(runs))}
@@ -526,9 +529,11 @@ def bench_moordyn(particles=12, repeats=3, duration=10.0, levels_mm=(1.0, 0.1), 
             )
         nodes, wall = md_run(None, "RK2")
         blown = ~np.isfinite(nodes).all(axis=(1, 2))
-        same_step = [c["wall_s"] for c in curves if c["solver"] == "ours" and abs(c["step_s"] - default_step) < 1e-15]
+        same_step = [c["wall_s"] for c in curves if c["solver"] == "ours" and c["scheme"] == "Verlet"
+                     and abs(c["step_s"] - default_step) < 1e-15]
         out["default_step"] = {
             "ours": {
+                "scheme": "Verlet, the step from the spectrum",
                 "step_s": default_step,
                 "wall_s": same_step[0] if same_step else default_wall,
                 "error_mm": _max_error_mm(ours_default, ref),
@@ -546,20 +551,25 @@ def bench_moordyn(particles=12, repeats=3, duration=10.0, levels_mm=(1.0, 0.1), 
     out["curves"] = curves
     out["repeat_runs_identical"] = same
     out["setup_s"] = setup
-    ours_rows = [c for c in curves if c["solver"] == "ours"]
     equal = {}
     for level in levels_mm:
         row = {}
         for key in ("wall_s", "wall_min_s"):  # the fastest repeat is the one least disturbed by other load
             tag = "" if key == "wall_s" else "_from_min"
-            t_ours, b_ours = time_to_error([c[key] for c in ours_rows], [c["error_mm"] for c in ours_rows], level)
-            row["ours_s" + tag], row["ours_at_stability_limit"] = t_ours, b_ours
+            ours = {}
+            for scheme in ("Verlet", "RK4"):
+                rows = [c for c in curves if c["solver"] == "ours" and c["scheme"] == scheme]
+                t, bound = time_to_error([c[key] for c in rows], [c["error_mm"] for c in rows], level)
+                name = "ours" if scheme == "Verlet" else "ours_rk4"  # ours: the default integrator
+                row[f"{name}_s{tag}"], row[f"{name}_at_stability_limit"] = t, bound
+                ours[scheme] = t
             for scheme in ("RK4", "RK2"):
                 rows = [c for c in curves if c["solver"] == "moordyn" and c["scheme"] == scheme]
                 t_md, b_md = time_to_error([c[key] for c in rows], [c["error_mm"] for c in rows], level)
                 row[f"moordyn_{scheme.lower()}_s{tag}"] = t_md
                 row[f"moordyn_{scheme.lower()}_at_stability_limit"] = b_md
-                row[f"ratio_{scheme.lower()}{tag}"] = t_md / t_ours
+                row[f"ratio_{scheme.lower()}{tag}"] = t_md / ours["Verlet"]
+                row[f"ratio_{scheme.lower()}_ours_rk4{tag}"] = t_md / ours["RK4"]
         equal[str(level)] = row
     out["equal_accuracy"] = equal
     md_base = next(c for c in curves if c["solver"] == "moordyn" and c["scheme"] == "RK4" and c["step_s"] == base)

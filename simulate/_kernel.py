@@ -1,4 +1,7 @@
-"""Compiled right-hand side and fixed-step RK4 integrator of the dragline model.
+"""Compiled right-hand side, fixed-step RK4 and the dissipative impulses of the dragline model.
+
+Velocity Verlet, the default integrator, is in ``_verlet`` (it calls
+``rhs_maxwell_update`` and ``dissipate`` from here).
 
 Everything here works on the flat arrays that ``_model.assemble`` builds
 (packed into one namedtuple, ``m``, a ``_model.KernelModel``, read by field name).
@@ -193,6 +196,22 @@ def _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLse
 @njit(cache=True)
 def rhs(t, y, dy, m, work):
     """dy = f(t, y). ``work`` holds scratch arrays (see ``make_work``)."""
+    _rhs(t, y, dy, m, work, False)
+
+
+@njit(cache=True)
+def rhs_maxwell_update(t, y, dy, m, work):
+    """``rhs`` after advancing the Maxwell forces F_m in ``y`` exactly over the last step (``_verlet``).
+
+    ``work.eps`` holds the elements' stretch ratios s / L_e at the step's
+    start on entry, at (t, y) on return; ``work.seg_decay`` and
+    ``work.seg_gain`` the step's exp(-lambda h) and Kv phi(lambda h) per segment.
+    """
+    _rhs(t, y, dy, m, work, True)
+
+
+@njit(cache=True, inline="always")
+def _rhs(t, y, dy, m, work, update):
     nb = m.nb
     body_mass = m.body_mass
     body_I = m.body_I
@@ -260,6 +279,16 @@ def rhs(t, y, dy, m, work):
         dyy = yb - ya
         dz = zb - za
         length = np.sqrt(dx * dx + dyy * dyy + dz * dz)
+        if update:
+            # F_m' = Kv eps' - lambda F_m, eps' constant over the step; from eps = 1 if it was slack
+            eps_now = length / Le
+            if (eps_now > 1.0) != (work.eps[e] > 1.0):
+                work.slack_changes[0] += 1.0
+            if length > Le:
+                y[o_F + e] = work.seg_decay[s] * y[o_F + e] + work.seg_gain[s] * (eps_now - max(work.eps[e], 1.0))
+            else:
+                y[o_F + e] = 0.0
+            work.eps[e] = eps_now
         Fm = y[o_F + e]
         tension = 0.0
         if length > Le:
@@ -381,7 +410,7 @@ def project(t, y, m, work):
 
 @njit(cache=True)
 def dissipate(t, y, dt, m, work):
-    """Implicit step of the dissipative mechanisms, after each RK4 step (splitting).
+    """Implicit step of the dissipative mechanisms, after each step of either integrator (splitting).
 
     Joint moments (rope bending damping c, chain-link friction mu r T) and
     ring friction (capstan, T_low (e^(mu beta) - 1)) are stiff on these light
@@ -583,6 +612,8 @@ Work = namedtuple("Work", [
     "trig",  # (nb, 4) per body: sin, cos of roll and yaw
     "inv_mass_seg",  # (S,) 1 / particle mass per segment
     "el_u", "el_len", "el_T", "el_arm",  # dissipate: element unit vectors, lengths, tensions, lever arms
+    "eps", "seg_decay", "seg_gain", "step",  # Verlet (rhs_maxwell_update): stretch ratios, per-segment factors, their h
+    "slack_changes",  # (1,) elements that turned slack or taut since it was zeroed (rhs_maxwell_update)
 ])
 
 
@@ -599,7 +630,8 @@ def make_work(m):
                 reel_rate=np.zeros(nreel), fb=np.zeros((nb, 3)), mb=np.zeros((nb, 3)), fp=np.zeros((max(P, 1), 3)),
                 sumA=np.zeros(max(R, 1)), sumB=np.zeros(max(R, 1)), fpos=np.zeros((F, 3)), fvel=np.zeros((F, 3)),
                 trig=np.zeros((max(nb, 1), 4)), inv_mass_seg=np.zeros(S), el_u=np.zeros((E, 3)), el_len=np.zeros(E),
-                el_T=np.zeros(E), el_arm=np.zeros((E, 6)))
+                el_T=np.zeros(E), el_arm=np.zeros((E, 6)), eps=np.zeros(E), seg_decay=np.zeros(S),
+                seg_gain=np.zeros(S), step=np.zeros(1), slack_changes=np.zeros(1))
 
 
 @njit(cache=True, inline="always")

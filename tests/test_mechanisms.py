@@ -34,10 +34,14 @@ def test_mechanism_only_removes_energy(rig, pushed, spec):
     res = simulate(rig, man, physics=physics, dissipation=False, initial_state=y0, duration=0.05, rate_hz=1000)
     E = res.energy()
     conservative = simulate(rig, man, dissipation=False, initial_state=y0, duration=0.05, rate_hz=1000).energy()
-    assert E[-1] < E[0] - 1e-6  # it dissipates
     assert np.max(np.diff(E)) < 1e-4  # J: never a real gain (integration error near the step limit aside)
-    if spec.startswith("pulley_inertia"):  # inertia stores energy, it does not dissipate it
-        pytest.skip("pulley inertia is conservative")
+    if spec.startswith("pulley_inertia"):
+        # Inertia stores energy, it does not dissipate it (RK4's own slight
+        # dissipation once made this case pass a "dissipates" check; Verlet
+        # conserves energy to 2e-6 J here).
+        assert np.max(np.abs(E - E[0])) < 1e-4
+        return
+    assert E[-1] < E[0] - 1e-6  # it dissipates
     assert E[-1] < conservative[-1]
 
 
