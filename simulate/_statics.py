@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from . import _kernel
 from ._kernel import KIND_PARTICLE
@@ -35,6 +36,7 @@ MAX_RELAX_STEPS = 5e6
 # ends twice as early as at 1e-4.
 NEWTON_FROM_SPEEDS = (3e-2, 1e-4)
 RELAX_CHECK_S = 0.1  # simulated seconds between looks at the speeds
+DIRECT_NEWTON_ITERATIONS = 10  # from a guess; beyond this it relaxes first
 
 
 class StaticsError(ValueError):
@@ -155,6 +157,12 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     newton = kernel_model(dict(arrays, relax_damping=0.0))
     chunks_left = int(np.ceil(max_relax_time / RELAX_CHECK_S))
     worst = np.inf
+    if y0 is not None:
+        # A guess (the equilibrium of a rig a few percent different) is near
+        # its own: Newton from it directly, relaxing only if that fails.
+        rest, worst = _polish(model, newton, work, y, tol, max_iter=DIRECT_NEWTON_ITERATIONS)
+        if np.isfinite(worst) and worst <= tol:
+            return Equilibrium(state=rest.copy(), residual=worst)
     for stage, speed in enumerate(NEWTON_FROM_SPEEDS):  # Newton from an early pose first; relax on if it fails
         # A pose at rest has no speed to wait for: every start (the rough hanging pose, or a guess such
         # as another rig's equilibrium) is let go for a first look at least, and a fallback relaxes a
@@ -178,7 +186,7 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     return Equilibrium(state=rest.copy(), residual=worst)
 
 
-def _polish(model, m, work, y, tol):
+def _polish(model, m, work, y, tol, max_iter=60):
     """Newton on the static balance from relaxed state ``y``: (rest state, largest imbalance left)."""
     y = np.array(y, float)
     for b in range(model.n_bodies):  # a body may have turned a full circle while settling
@@ -194,7 +202,10 @@ def _polish(model, m, work, y, tol):
         _kernel.rhs(0.0, rest, dy, m, work)
         return dy[rows] * scale
 
-    q = _newton(residual, rest[unknown].copy(), _jacobian_pattern(model, unknown), tol)
+    # One BLAS thread: the diagnosis runs statics in parallel processes on two
+    # cores, where many-threaded LAPACK took ten times longer.
+    with threadpool_limits(1):
+        q = _newton(residual, rest[unknown].copy(), _jacobian_pattern(model, unknown), tol, max_iter)
     rest[unknown] = q
     return rest, float(np.max(np.abs(residual(q)), initial=0.0))
 
