@@ -104,10 +104,19 @@ class ViconExport:
         Keyed by the lower-cased section name (``'trajectories'``,
         ``'devices'``, ``'model outputs'``), in file order.
     path : str
+    notes : list of str
+        What the reader skipped and why: a section other than Trajectories
+        it could not parse, columns of the Trajectories section that are not
+        marker positions (derivatives, counts, magnitudes).
+    events : list of dict
+        The Events section's rows: ``subject``, ``context``, ``name``,
+        ``time_s``, ``description``, in file order.
     """
 
     sections: dict
     path: str
+    notes: list = field(default_factory=list)
+    events: list = field(default_factory=list)
 
     @property
     def trajectories(self):
@@ -221,7 +230,7 @@ def read_vicon_csv(path):
     # Title/Date/Notes lines there); a known section name without a rate
     # line is a broken file, not a preamble.
     i = first
-    while i < n and not lines.section_start(i):
+    while i < n and not lines.section_start(i) and not _events_start(lines, i):
         if lines.rows[i][0].lower() in _KNOWN_SECTIONS and not any(lines.rows[i][1:]):
             lines.fail(i + 1, f"section '{lines.rows[i][0]}' is not followed by a rate line "
                               "(e.g. '100' or '100,Hz')")
@@ -230,21 +239,86 @@ def read_vicon_csv(path):
         lines.fail(first, "no VICON section found (expected a name line such as "
                           "'Trajectories' followed by a rate line)")
 
-    sections = {}
+    sections, notes, events = {}, [], []
     while i < n:
         if lines.blank(i):
             i += 1
             continue
+        if _events_start(lines, i):
+            i = _read_events(lines, i, events, notes)
+            continue
         if not lines.section_start(i):
-            lines.fail(i, "expected a section name line (e.g. 'Trajectories') "
-                          f"followed by a rate line, found '{lines.delimiter.join(lines.rows[i])[:60]}'")
+            if "trajectories" not in sections and not sections:
+                lines.fail(i, "expected a section name line (e.g. 'Trajectories') "
+                              f"followed by a rate line, found '{lines.delimiter.join(lines.rows[i])[:60]}'")
+            # After a section, a block of another shape: not ours to read, and not a reason to refuse.
+            end = _block_end(lines, i)
+            notes.append(f"skipped lines {i + 1}-{end}: not a section this reader knows "
+                         f"('{lines.delimiter.join(lines.rows[i])[:40]}')")
+            i = end
+            continue
         start = i
-        section, i = _read_section(lines, i)
-        key = section.name.lower()
-        if key in sections:
-            lines.fail(start, f"section '{section.name}' appears twice")
-        sections[key] = section
-    return ViconExport(sections=sections, path=path)
+        name = lines.rows[i][0]
+        if name.lower() in sections:
+            lines.fail(start, f"section '{name}' appears twice")
+        try:
+            section, i = _read_section(lines, i)
+        except ValueError as exc:
+            if name.lower() == "trajectories":
+                raise
+            # Nexus writes Joints, Segments and Model Outputs sections the
+            # trajectories do not need; one the reader cannot parse is skipped.
+            i = _block_end(lines, start + 2)
+            notes.append(f"skipped section '{name}' (lines {start + 1}-{i}): {str(exc).split(': ', 1)[-1]}")
+            continue
+        sections[name.lower()] = section
+    export = ViconExport(sections=sections, path=path, notes=notes, events=events)
+    if export.trajectories is not None:
+        try:
+            notes.extend(_marker_layout(export.trajectories, path)[2])
+        except ValueError:
+            pass  # said by marker_trajectories, when markers are asked for
+    return export
+
+
+def _block_end(lines, i):
+    """Index of the first blank line or section start after line i (or the end)."""
+    n = len(lines.rows)
+    k = i + 1
+    while k < n and not lines.blank(k) and not lines.section_start(k) and not _events_start(lines, k):
+        k += 1
+    return k
+
+
+def _events_start(lines, i):
+    """True if line i names an Events section (its rate line optional)."""
+    cells = lines.rows[i]
+    if cells[0].lower() != "events" or any(cells[1:]):
+        return False
+    k = i + 1 if lines.rate(i + 1) is None else i + 2
+    return k < len(lines.rows) and [c.lower() for c in lines.rows[k][:1]] == ["subject"]
+
+
+def _read_events(lines, i, events, notes):
+    """Rows of an Events section (Subject, Context, Name, Time (s), Description) into ``events``."""
+    k = i + 1 if lines.rate(i + 1) is None else i + 2
+    header = [c.lower() for c in lines.rows[k]]
+    col = {key: next((j for j, c in enumerate(header) if c.startswith(key)), None)
+           for key in ("subject", "context", "name", "time", "description")}
+    k += 1
+    while k < len(lines.rows) and not lines.blank(k) and not lines.section_start(k):
+        cells = lines.rows[k] + [""] * len(header)
+        try:
+            time_s = lines.number(cells[col["time"]]) if col["time"] is not None else math.nan
+        except ValueError:
+            notes.append(f"skipped event on line {k + 1}: time '{cells[col['time']]}' is not a number")
+            k += 1
+            continue
+        events.append({key: (time_s if key == "time" else cells[j] if j is not None else "")
+                       for key, j in col.items()})
+        events[-1]["time_s"] = events[-1].pop("time")
+        k += 1
+    return k
 
 
 def _read_section(lines, i):
@@ -354,26 +428,47 @@ def _split_marker(name):
     return (subject, marker) if sep and subject else (None, name)
 
 
-def _marker_columns(section, where):
-    """Column indices (X, Y, Z) of every marker group, in file order."""
-    order, found = [], {}
+def _marker_layout(section, where):
+    """Marker groups of a Trajectories section, their X, Y, Z columns, and notes on what is not a position.
+
+    A group without X, Y and Z columns (``Trajectory Count``, a magnitude)
+    is not a marker; derivative columns (``X'``, ``Y''``: velocity and
+    acceleration) and any other component beside a marker's X, Y, Z are
+    left out, with a note. A marker whose positions appear twice is an error.
+    """
+    order, found, extra = [], {}, {}
     for c, (g, comp) in enumerate(zip(section.groups, section.components)):
         if not g:
             raise ValueError(f"{where}: Trajectories data column {c + 1} ({comp}) "
                              "has no marker name on the names line")
-        if g not in found:
-            order.append(g)
-            found[g] = {}
-        elif g != order[-1]:
-            raise ValueError(f"{where}: marker '{g}' appears twice on the names line")
-        found[g].setdefault(comp.upper(), c)
-    idx = []
+        key = comp.upper().replace(" ", "")
+        if key in ("X", "Y", "Z"):
+            if g in found and key in found[g]:
+                raise ValueError(f"{where}: marker '{g}' appears twice on the names line")
+            if g not in found:
+                order.append(g)
+                found[g] = {}
+            found[g][key] = c
+        else:
+            extra.setdefault(g, []).append(comp)
+    notes = []
+    markers = []
     for g in order:
         missing = [a for a in "XYZ" if a not in found[g]]
         if missing:
             raise ValueError(f"{where}: marker '{g}' has no {'/'.join(missing)} column")
-        idx.append([found[g][a] for a in "XYZ"])
-    return order, np.array(idx, dtype=int).reshape(len(order), 3)
+        markers.append(g)
+    not_markers = [g for g in extra if g not in found]
+    derivative = sorted({comp for g in extra if g in found for comp in extra[g] if comp.endswith("'")})
+    other = sorted({comp for g in extra if g in found for comp in extra[g] if not comp.endswith("'")})
+    if not_markers:
+        notes.append("Trajectories: columns that are not markers left out: " + ", ".join(not_markers))
+    if derivative:
+        notes.append("Trajectories: derivative columns left out (velocity, acceleration): " + ", ".join(derivative))
+    if other:
+        notes.append("Trajectories: other marker columns left out: " + ", ".join(other))
+    idx = np.array([[found[g][a] for a in "XYZ"] for g in markers], dtype=int).reshape(len(markers), 3)
+    return markers, idx, notes
 
 
 def marker_trajectories(export, subject=None):
@@ -404,7 +499,7 @@ def marker_trajectories(export, subject=None):
     if section is None:
         raise ValueError(f"{export.path}: no Trajectories section "
                          f"(sections: {', '.join(s.name for s in export.sections.values())})")
-    names, idx = _marker_columns(section, export.path)
+    names, idx, _ = _marker_layout(section, export.path)
     if subject is not None:
         keep = [k for k, m in enumerate(names) if _split_marker(m)[0] == subject]
         if not keep:
@@ -509,10 +604,13 @@ def summarize_vicon_csv(path):
         "longest_gap"}}}}``. ``frames`` counts distinct frame numbers (a
         Devices section has several rows, its sub-frames, per frame); a
         subject ``name`` is None for markers without a ``Subject:`` prefix;
-        ``unlabeled`` lists ``*``-named markers; gaps count NaN frames.
+        ``unlabeled`` lists ``*``-named markers; gaps count NaN frames;
+        ``notes``: what the reader skipped (``ViconExport.notes``);
+        ``events``: the Events section's labelled times.
     """
     export = read_vicon_csv(path)
-    summary = {"path": export.path, "sections": [], "trajectories": None}
+    summary = {"path": export.path, "sections": [], "trajectories": None, "notes": list(export.notes),
+               "events": [dict(e) for e in export.events]}
     for s in export.sections.values():
         summary["sections"].append({
             "name": s.name,

@@ -68,7 +68,9 @@ def read_trajectory_table(path, side="trajectory"):
         the row.
     """
     try:
-        frame = pd.read_csv(path)
+        # low_memory=False: one type per column for the whole file, so a
+        # mixed column (a Nexus export offered as a table) warns of nothing.
+        frame = pd.read_csv(path, low_memory=False)
     except FileNotFoundError:
         raise ValueError(f"{side} table {path} does not exist") from None
     except IsADirectoryError:

@@ -209,6 +209,10 @@ def _vicon_text(s):
         rate = "-" if sec["rate_hz"] is None else f"{sec['rate_hz']:g}"
         lines.append(f"  {sec['name']:<16} {rate:>8} {sec['rows']:>7} {sec['frames']:>7} {span:>12} "
                      f"{sec['columns']:>8}  {', '.join(sec['units'] or []) or '-'}")
+    for e in s.get("events", []):
+        lines.append(f"  event {e['time_s']:g} s: {' '.join(x for x in (e['subject'], e['context'], e['name']) if x)}")
+    for note in s.get("notes", []):
+        lines.append(f"  note: {note}")
     t = s["trajectories"]
     if t is None:
         lines.append("  no Trajectories section (no 3D markers)")

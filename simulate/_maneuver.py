@@ -113,7 +113,7 @@ def read_maneuver_csv(path):
         ``_maneuver_schema``, docs/schemas.md).
     """
     try:
-        frame = pd.read_csv(path)
+        frame = pd.read_csv(path, low_memory=False)  # one type per column: no DtypeWarning on odd files
     except FileNotFoundError:
         raise ValueError(f"maneuver file {path} does not exist") from None
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, OSError) as exc:

@@ -365,9 +365,107 @@ def test_section_without_header(tmp_path):
     assert "line 3:" in message and "header" in message
 
 
-def test_garbage_after_a_section(tmp_path):
+def test_garbage_after_a_section_is_skipped_and_said(tmp_path):
     lines = REAL_TRAJ_LINES + ["", "hello,world"]
-    assert "line 9:" in read_error(write_text(tmp_path, lines))
+    export = read_vicon_csv(write_text(tmp_path, lines))
+    assert_same_markers(write_text(tmp_path, lines))
+    assert any("lines 9-9" in note and "hello" in note for note in export.notes), export.notes
+
+
+def test_garbage_before_any_section_is_still_refused(tmp_path):
+    assert "no VICON section" in read_error(write_text(tmp_path, ["hello,world", "1,2"]))
+
+
+# Sections and columns Nexus writes that the trajectories do not need: read
+# or skipped by their header, never a reason to refuse the file (issue: five
+# of ten real exports were refused for one of these).
+
+EVENTS = ["Events", "100", "Subject,Context,Name,Time (s),Description",
+          "Angelica,Left,Foot Strike,0.01,The instant the heel strikes the ground",
+          "Angelica,Right,Foot Off,0.015,", ""]
+
+
+def test_an_events_section_before_the_trajectories_is_read_as_labelled_times(tmp_path):
+    path = write_text(tmp_path, EVENTS + REAL_TRAJ_LINES)
+    assert_same_markers(path)
+    export = read_vicon_csv(path)
+    assert [(e["context"], e["name"], e["time_s"]) for e in export.events] == [
+        ("Left", "Foot Strike", 0.01), ("Right", "Foot Off", 0.015)]
+    summary = summarize_vicon_csv(path)
+    assert summary["events"][0]["subject"] == "Angelica" and summary["trajectories"]["markers"] == 4
+    # without its rate line too
+    path = write_text(tmp_path, [EVENTS[0]] + EVENTS[2:] + REAL_TRAJ_LINES, name="norate.csv")
+    assert len(read_vicon_csv(path).events) == 2
+
+
+def test_derivative_columns_are_left_out_with_a_note_never_taken_for_markers(tmp_path):
+    # Nexus can write each marker's X' Y' Z' (velocity) and X'' Y'' Z'' (acceleration) after its X Y Z.
+    lines = list(REAL_TRAJ_LINES)
+    names, header, units, rows = [], [], [], [[] for _ in lines[FIRST_DATA_LINE:]]
+    src_names = lines[NAMES_LINE].split(",")
+    for k in range(4):
+        names += [src_names[2 + 3 * k]] + [""] * 8
+        header += ["X", "Y", "Z", "X'", "Y'", "Z'", "X''", "Y''", "Z''"]
+        units += ["mm"] * 3 + ["mm/s"] * 3 + ["mm/s^2"] * 3
+        for r, line in enumerate(lines[FIRST_DATA_LINE:]):
+            cells = line.split(",")[2 + 3 * k:5 + 3 * k]
+            rows[r] += cells + (["1.5", "-2", "3"] if cells[0] else [""] * 3) * 2
+    lines[NAMES_LINE] = ",".join(["", ""] + names)
+    lines[HEADER_LINE] = ",".join(["Frame", "Sub Frame"] + header)
+    lines[UNITS_LINE] = ",".join(["", ""] + units)
+    for r, line in enumerate(lines[FIRST_DATA_LINE:]):
+        lines[FIRST_DATA_LINE + r] = ",".join(line.split(",")[:2] + rows[r])
+    path = write_text(tmp_path, lines)
+    assert_same_markers(path)
+    notes = read_vicon_csv(path).notes
+    assert any("derivative" in n and "X''" in n for n in notes), notes
+
+
+def test_a_trajectory_count_column_is_not_a_marker(tmp_path):
+    lines = list(REAL_TRAJ_LINES)
+    lines[NAMES_LINE] = ",,Trajectory Count," + lines[NAMES_LINE][2:]
+    lines[HEADER_LINE] = "Frame,Sub Frame,Count," + lines[HEADER_LINE][len("Frame,Sub Frame,"):]
+    lines[UNITS_LINE] = ",,," + lines[UNITS_LINE][2:]
+    for r in range(FIRST_DATA_LINE, len(lines)):
+        frame, sub, rest = lines[r].split(",", 2)
+        lines[r] = f"{frame},{sub},2,{rest}"
+    path = write_text(tmp_path, lines)
+    assert_same_markers(path)
+    assert any("Trajectory Count" in n for n in read_vicon_csv(path).notes)
+
+
+def test_joints_and_model_outputs_the_reader_cannot_parse_are_skipped_and_said(tmp_path):
+    joints = ["Joints", "100", ",,Angelica:Knee,,", "Frame,Sub Frame,RX,,RZ", ",,deg,deg,deg", "1,0,1,2,3", ""]
+    model = ["Model Outputs", "100", ",,Angelica:LKneeAngles,,", "Frame,Sub Frame,X,Y,Z", ",,deg,deg,deg",
+             "1,0,1,2,3", "2,,1,2,3", ""]
+    path = write_text(tmp_path, joints + model + REAL_TRAJ_LINES)
+    assert_same_markers(path)
+    export = read_vicon_csv(path)
+    assert set(export.sections) == {"trajectories"}
+    assert any("'Joints'" in n and "empty header cell" in n for n in export.notes), export.notes
+    assert any("'Model Outputs'" in n and "sub frame" in n for n in export.notes), export.notes
+    assert summarize_vicon_csv(path)["notes"] == export.notes
+
+
+def test_a_trajectories_section_the_reader_cannot_parse_still_refuses_the_file(tmp_path):
+    lines = list(REAL_TRAJ_LINES)
+    lines[HEADER_LINE] = "Frame,Sub Frame,X,,Z,X,Y,Z,X,Y,Z,X,Y,Z"
+    assert "empty header cell" in read_error(write_text(tmp_path, lines))
+
+
+def test_a_table_with_a_mixed_column_warns_of_nothing(tmp_path):
+    # pandas reads a big file in chunks and warned (5 kB of DtypeWarning on
+    # stderr) when a column's type changed between them.
+    import warnings
+
+    from dragline.compare import read_trajectory_table
+
+    rows = ["time,bucket.x"] + [f"{0.005 * k},1.0" for k in range(300_000)] + ["1500.0,oops"]
+    path = write_text(tmp_path, rows, name="table.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match="'oops': expected a number"):
+            read_trajectory_table(path)
 
 
 def test_duplicate_section(tmp_path):
