@@ -5,9 +5,13 @@ Per source ``s`` of :func:`write_results` (``measured``, ``simulated``, ...):
 ``/s/scene`` (``foxglove.SceneUpdate``: a cube per body, a sphere for a body
 whose orientation is unknown, a line strip per rope) and ``/s/markers``
 (``foxglove.PointCloud``, FLOAT64 x, y, z), JSON-encoded with JSON schemas.
-``world`` is the inertial frame of docs/conventions.md unchanged: K (z) points DOWN, so
-Foxglove's z-up 3D view shows the rig upside down unless the view is flipped.
-Chunks are flushed as they fill, like session files (``_mcap_io``).
+``world`` is the inertial frame of docs/conventions.md unchanged: K (z) points
+DOWN. Every transforms message also holds ``world_z_up`` -> ``world``, a half
+turn about x: pick ``world_z_up`` as the 3D panel's display frame and the rig
+stands right side up (Foxglove's view is z-up). Log times are the tables'
+times after the recording's start (``start_ns``, Unix epoch; the current
+time when the start is not known), and the summary's ``dragline`` metadata
+says which. Chunks are flushed as they fill, like session files (``_mcap_io``).
 """
 
 from __future__ import annotations
@@ -16,6 +20,8 @@ import base64
 import heapq
 import os
 import re
+import time
+from datetime import datetime, timezone
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -112,6 +118,9 @@ FOXGLOVE_SCHEMAS = {
 }
 
 WORLD_FRAME = "world"
+# Display frame: world turned half a turn about x (x kept, y and z reversed), so z is up.
+Z_UP_FRAME = "world_z_up"
+_HALF_TURN_X = {"x": 1.0, "y": 0.0, "z": 0.0, "w": 0.0}
 # Bucket: 0.381 x 0.203 x 0.152 m (paper section 3.1); the other bodies are drawn small.
 BODY_SIZE = {"bucket": (0.381, 0.203, 0.152)}
 _SMALL = (0.05, 0.05, 0.05)
@@ -198,13 +207,16 @@ def _source_data(source, table, markers, ropes):
                       for k, v in (ropes or {}).items()}}
 
 
-def _source_messages(source, data, color, channels):
-    """Yield (log_time_ns, channel_id, payload) for one source, in time order."""
+def _source_messages(source, data, color, channels, origin_ns):
+    """Yield (log_time_ns, channel_id, payload) for one source, in time order, from ``origin_ns``."""
     poses, markers, ropes = data["poses"], data["markers"], data["ropes"]
     bodies = list(poses)
     for i, ns in enumerate(data["times"]):
+        ns = origin_ns + ns
         stamp = _stamp(ns)
-        transforms, entities, deletions = [], [], []
+        transforms = [{"timestamp": stamp, "parent_frame_id": Z_UP_FRAME, "child_frame_id": WORLD_FRAME,
+                       "translation": _xyz((0.0, 0.0, 0.0)), "rotation": dict(_HALF_TURN_X)}]
+        entities, deletions = [], []
         for body in bodies:
             pos, quat = poses[body][0][i].tolist(), poses[body][1][i].tolist()
             eid = f"{source}/{body}"
@@ -242,7 +254,7 @@ def _source_messages(source, data, color, channels):
             yield ns, channels["markers"], _json_bytes(cloud)
 
 
-def write_results(path, tables, markers=None, ropes=None, chunk_size=CHUNK_SIZE):
+def write_results(path, tables, markers=None, ropes=None, chunk_size=CHUNK_SIZE, start_ns=None):
     """Write trajectory tables (and markers, ropes) as a Foxglove-ready MCAP, atomically.
 
     Parameters
@@ -260,6 +272,10 @@ def write_results(path, tables, markers=None, ropes=None, chunk_size=CHUNK_SIZE)
         there is one table), drawn as line strips.
     chunk_size : int
         Chunk size (bytes).
+    start_ns : int, optional
+        When the recording started (ns since the Unix epoch): a table's time
+        t is logged at ``start_ns + t``. The current time when None (the
+        start is not known); the metadata says which.
 
     Returns
     -------
@@ -282,11 +298,20 @@ def write_results(path, tables, markers=None, ropes=None, chunk_size=CHUNK_SIZE)
     data = {s: _source_data(s, tables[s], (markers or {}).get(s), rope_sets.get(s))
             for s in sources}
 
+    known = start_ns is not None
+    if known and not (isinstance(start_ns, (int, np.integer)) and 0 <= start_ns < 2**63 - 10**15):
+        raise ValueError(f"start_ns must be a non-negative integer (ns since the Unix epoch), got {start_ns!r}")
+    origin = int(start_ns) if known else time.time_ns()
+
     def fill(writer):
         writer.add_metadata("dragline", {
             "format": "dragline.results/1",
             "world_frame": "inertial frame: origin on the ground below the machine, "
-                           "z (K) points down, m and rad"})
+                           "z (K) points down, m and rad",
+            "display_frame": f"{Z_UP_FRAME}: world turned half a turn about x, z up; pick it in the 3D panel",
+            "log_time_origin": datetime.fromtimestamp(origin / 1e9, timezone.utc).isoformat(),
+            "log_time_origin_source": "the recording's start" if known else
+                                      "the time this file was written (the recording's start is not known)"})
         schema_ids = {name: writer.register_schema(name, "jsonschema", _json_bytes(schema))
                       for name, schema in FOXGLOVE_SCHEMAS.items()}
         streams = []
@@ -299,7 +324,7 @@ def write_results(path, tables, markers=None, ropes=None, chunk_size=CHUNK_SIZE)
             if data[s]["markers"] is not None:
                 channels["markers"] = writer.register_channel(
                     f"/{s}/markers", "json", schema_ids["foxglove.PointCloud"])
-            streams.append(_source_messages(s, data[s], colors[s], channels))
+            streams.append(_source_messages(s, data[s], colors[s], channels, origin))
         # Sources interleave in log-time order so that players stream them together.
         for ns, channel, payload in heapq.merge(*streams, key=lambda m: m[0]):
             writer.add_message(channel, ns, payload, ns)

@@ -447,8 +447,9 @@ def test_results_file_is_foxglove_shaped(tmp_path):
     markers = rng.normal(size=(12, 5, 3))
     markers[2, 1] = np.nan
     rope = rng.normal(size=(7, 9, 3))
+    start = 1_764_000_000_123_456_789  # 2025-11-24, ns since the epoch
     path = write_results(tmp_path / "results.mcap", {"measured": measured, "simulated": simulated},
-                         markers={"measured": markers}, ropes={"simulated/hoist_rope": rope})
+                         markers={"measured": markers}, ropes={"simulated/hoist_rope": rope}, start_ns=start)
     summary, msgs = _read_results(path)
 
     assert {s.name for s in summary.schemas.values()} == {
@@ -467,15 +468,22 @@ def test_results_file_is_foxglove_shaped(tmp_path):
     for schema, channel, message, doc in msgs:
         source, kind = channel.topic.strip("/").split("/")
         table = tables[source]
-        i = int(np.argmin(np.abs(table["time"].to_numpy() - message.log_time / 1e9)))
-        t_ns = round(table["time"][i] * 1e9)
+        i = int(np.argmin(np.abs(table["time"].to_numpy() - (message.log_time - start) / 1e9)))
+        t_ns = start + round(table["time"][i] * 1e9)
         assert message.log_time == t_ns
         stamp = {"sec": t_ns // 10**9, "nsec": t_ns % 10**9}
         seen[kind] += 1
         if kind == "transforms":
             assert schema.name == "foxglove.FrameTransforms" and set(doc) == {"transforms"}
             children = set()
-            for tf in doc["transforms"]:
+            up, *bodies = doc["transforms"]
+            # the display frame: world half a turn about x, so that z is up
+            assert (up["parent_frame_id"], up["child_frame_id"]) == ("world_z_up", "world")
+            assert up["timestamp"] == stamp and up["translation"] == {"x": 0.0, "y": 0.0, "z": 0.0}
+            down = np.array([0.0, 0.0, 1.0])  # world's K, pointing down
+            q = np.array([up["rotation"][k] for k in "xyzw"])
+            np.testing.assert_allclose(_rotate(q, down[None])[0], [0.0, 0.0, -1.0], atol=1e-15)
+            for tf in bodies:
                 assert set(tf) == {"timestamp", "parent_frame_id", "child_frame_id",
                                    "translation", "rotation"}
                 assert tf["timestamp"] == stamp and tf["parent_frame_id"] == "world"
@@ -542,7 +550,36 @@ def test_results_file_is_foxglove_shaped(tmp_path):
     by_topic = {c["topic"]: c for c in s["channels"]}
     assert by_topic["/simulated/scene"]["schema"] == "foxglove.SceneUpdate"
     assert by_topic["/measured/markers"]["messages"] == 12
-    assert by_topic["/simulated/transforms"]["first_time_s"] == pytest.approx(0.001)
+    assert by_topic["/simulated/transforms"]["first_time_s"] == pytest.approx(start / 1e9 + 0.001, abs=1e-6)
+
+
+def _results_metadata(path):
+    with open(path, "rb") as fh:
+        return {m.name: m.metadata for m in make_reader(fh).iter_metadata()}["dragline"]
+
+
+def test_results_log_times_are_dated_from_the_recording_start_or_now(tmp_path):
+    import time
+    from datetime import datetime
+
+    start = 1_764_000_000 * 10**9
+    path = write_results(tmp_path / "dated.mcap", {"measured": _table(3)}, start_ns=start)
+    meta = _results_metadata(path)
+    assert datetime.fromisoformat(meta["log_time_origin"]).timestamp() == 1_764_000_000
+    assert meta["log_time_origin_source"] == "the recording's start"
+    assert "world_z_up" in meta["display_frame"]
+    _, msgs = _read_results(path)
+    assert min(m.log_time for _, _, m, _ in msgs) == start  # the table's first row is at time 0
+    before = time.time_ns()
+    path = write_results(tmp_path / "now.mcap", {"measured": _table(3)})
+    after = time.time_ns()
+    meta = _results_metadata(path)
+    assert before <= datetime.fromisoformat(meta["log_time_origin"]).timestamp() * 1e9 <= after + 1e6
+    assert "not known" in meta["log_time_origin_source"]
+    _, msgs = _read_results(path)
+    assert before <= min(m.log_time for _, _, m, _ in msgs) <= after
+    with pytest.raises(ValueError, match="start_ns must be"):
+        write_results(tmp_path / "bad.mcap", {"measured": _table(3)}, start_ns=-5)
 
 
 @pytest.mark.parametrize("kwargs, message", [
