@@ -202,6 +202,8 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
                 acc[:] = acc_start
                 work.eps[:] = eps_start
                 fine = int(math.ceil(sub / SLACK_STEP_FACTOR - 1e-9))
+                if total + fine > max_steps:
+                    return records[: rec + 1], substeps[: rec + 1], STATUS_TOO_STIFF, t_rec, fine
                 total += fine
                 substeps[rec] = fine
                 h = out_dt / fine
