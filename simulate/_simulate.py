@@ -292,6 +292,8 @@ def simulate(
     """
     rig = load_rig() if rig is None else rig
     maneuver = dig_maneuver() if maneuver is None else maneuver
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"unknown integrator {integrator!r}; choose one of {', '.join(INTEGRATORS)}")
     if not duration > 0:
         raise ValueError(f"duration must be positive, got {duration}")
     if not rate_hz > 0:
@@ -327,8 +329,6 @@ def simulate(
                          f"need {needed / 2**30:.3g} GiB, more than the {MAX_RECORD_BYTES / 2**30:g} GiB allowed")
     m = model.kernel_tuple()
     work = _kernel.make_work(m)
-    if integrator not in INTEGRATORS:
-        raise ValueError(f"unknown integrator {integrator!r}; choose one of {', '.join(INTEGRATORS)}")
     method = INTEGRATORS[integrator]
     if dt is None:
         dt0, lam0 = start_time_step(model, y0, t0, integrator=integrator)
