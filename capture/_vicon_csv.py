@@ -248,7 +248,7 @@ def read_vicon_csv(path):
             i = _read_events(lines, i, events, notes)
             continue
         if not lines.section_start(i):
-            if "trajectories" not in sections and not sections:
+            if not sections:  # before any section: not a VICON export
                 lines.fail(i, "expected a section name line (e.g. 'Trajectories') "
                               f"followed by a rate line, found '{lines.delimiter.join(lines.rows[i])[:60]}'")
             # After a section, a block of another shape: not ours to read, and not a reason to refuse.
