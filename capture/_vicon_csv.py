@@ -314,9 +314,8 @@ def _read_events(lines, i, events, notes):
             notes.append(f"skipped event on line {k + 1}: time '{cells[col['time']]}' is not a number")
             k += 1
             continue
-        events.append({key: (time_s if key == "time" else cells[j] if j is not None else "")
+        events.append({("time_s" if key == "time" else key): (time_s if key == "time" else cells[j] if j is not None else "")
                        for key, j in col.items()})
-        events[-1]["time_s"] = events[-1].pop("time")
         k += 1
     return k
 

@@ -341,18 +341,18 @@ def simulate(
                 f"{out_dt / max(bad_index, 1):.2g} s would be needed (a rope or chain element near zero length? "
                 f"check the maneuver's reel lengths), more than the {MAX_STEPS:.0e} steps allowed")
         step = out_dt / max(int(substeps.max(initial=1)), 1)  # the smallest step taken
-    elif method == VERLET:
-        per_record = max(1, int(np.ceil(out_dt / float(dt) - 1e-9)))
-        step = out_dt / per_record
-        records, _, status, bad_time, bad_index = integrate_tracked(
-            y0, t0, out_dt, n_records, step, np.inf, m, work, max_speed, int(MAX_STEPS), method)
     else:
         per_record = max(1, int(np.ceil(out_dt / float(dt) - 1e-9)))
         step = out_dt / per_record
-        records, status, bad_step, bad_index = _kernel.integrate(
-            y0, t0, step, n_records * per_record, per_record, m, work, max_speed
-        )
-        bad_time = t0 + bad_step * step
+        if method == VERLET:
+            # lam0 = inf: the step is never cut, nor refined at a slack change (a fixed step was asked)
+            records, _, status, bad_time, bad_index = integrate_tracked(
+                y0, t0, out_dt, n_records, step, np.inf, m, work, max_speed, int(MAX_STEPS), method)
+        else:
+            records, status, bad_step, bad_index = _kernel.integrate(
+                y0, t0, step, n_records * per_record, per_record, m, work, max_speed
+            )
+            bad_time = t0 + bad_step * step
     if status != _kernel.STATUS_OK:
         what = "a non-finite value" if status == _kernel.STATUS_NONFINITE else f"a speed above {max_speed:g} m/s"
         raise SimulationError(

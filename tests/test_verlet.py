@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dragline.simulate import Maneuver, assemble, dig_maneuver, load_rig, rig_from_dict, simulate, solve_statics
+from dragline.simulate import Maneuver, assemble, dig_maneuver, load_rig, simulate, solve_statics
 from dragline.simulate import _kernel
 from dragline.simulate._time_step import VERLET_SAFETY, start_time_step
 from dragline.simulate._tracked import VERLET, integrate_tracked
@@ -59,24 +59,6 @@ def test_with_dissipation_verlet_stays_second_order_and_rk4_converges_to_its_lim
     assert r2 < r1 < 5.0 and r2 < 2.0, (r1, r2)
 
 
-def test_verlet_step_of_a_taut_string_is_two_over_its_highest_axial_mode():
-    n, length, span = 6, 0.99, 1.0
-    rig = rig_from_dict({
-        "fixed_points": {"a": [0.0, 0.0, -2.0], "b": [span, 0.0, -2.0]},
-        "ropes": {"string": {"start": "fixed.a", "end": "fixed.b", "length": length, "particles": n,
-                             "weight_per_length": 1e-3, "static_stiffness": 1e4, "viscous_stiffness": 1.0,
-                             "viscous_damping": 1.0}},
-    })
-    model = assemble(rig, Maneuver([0.0], [1.0], [1.0]), dissipation=False)
-    state = solve_statics(model).state
-    a = model.arrays
-    k = (a["seg_ks"][0] + a["seg_kv"][0]) / (length / (n + 1))
-    m = a["seg_rho"][0] * length / n
-    omega = 2 * np.sqrt(k / m) * np.sin(n * np.pi / (2 * (n + 1)))
-    dt, _ = start_time_step(model, state, safety=1.0, integrator="verlet")
-    assert dt == pytest.approx(2.0 / omega, rel=2e-3)
-
-
 def test_the_tracked_verlet_step_holds_the_dig_and_a_fixed_step_past_its_limit_blows_up():
     model = assemble(load_rig(), dig_maneuver(), "low")
     state = solve_statics(model).state
@@ -97,8 +79,6 @@ def test_an_element_turning_slack_makes_the_tracked_verlet_step_finer():
     # snap taut. Verlet at its full step gained energy there (a blow-up at
     # 0.75 of its limit); each interval with a slack change is done again
     # finer, and with Eq. 8's dissipation energy only falls.
-    from dragline.simulate import Maneuver
-
     rig = load_rig()
     man = Maneuver([0.0], [10.1], [1.4])
     model = assemble(rig, man, dissipation=False)
