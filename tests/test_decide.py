@@ -7,9 +7,18 @@ figures are chosen to sit either side of each rule's limit.
 
 import math
 
+import numpy as np
 import pytest
 
-from dragline.compare.diagnose._decide import ADEQUATE_RMS, LEFTOVER_SHARE, decide, leftover_share
+from dragline.compare.diagnose._decide import (
+    ADEQUATE_RMS,
+    LEFTOVER_SHARE,
+    MODEL_ERROR_FULL,
+    MODEL_ERROR_SHARE,
+    decide,
+    leftover_share,
+    model_error_share,
+)
 from dragline.compare.diagnose._updating import JOINT_SPAN, joint_value_bounds
 
 THRESHOLD = 100.0
@@ -29,6 +38,21 @@ def test_leftover_share_is_the_excess_over_noise_left():
     # Below the noise after: nothing left, never negative; nothing to explain before: 0.
     assert leftover_share({"rms_before": 2.0, "rms_after": 0.9}) == 0.0
     assert leftover_share({"rms_before": 0.95, "rms_after": 0.9}) == 0.0
+
+
+def test_the_model_error_budget_grows_with_the_excess_to_its_full_share():
+    n = 35000.0
+    # A recording that fits to the noise asks nothing beyond the surrogates.
+    assert model_error_share(0.0, n) == 0.0
+    # The excess recordings of the model itself leave (0.06-0.11 of n) asks a small share of a small excess:
+    # the budget, share x excess, stays below the surrogates' floor of 200 there.
+    assert model_error_share(0.1 * n, n) * 0.1 * n < 200.0
+    # From MODEL_ERROR_FULL on, the full share; in between it grows without a jump.
+    assert model_error_share(MODEL_ERROR_FULL * n, n) == pytest.approx(MODEL_ERROR_SHARE)
+    assert model_error_share(3.0 * n, n) == pytest.approx(MODEL_ERROR_SHARE)
+    shares = [model_error_share(x * n, n) for x in np.linspace(0.0, 1.0, 101)]
+    assert all(b >= a for a, b in zip(shares, shares[1:]))
+    assert max(np.diff(shares)) <= MODEL_ERROR_SHARE * 0.01 / MODEL_ERROR_FULL + 1e-12
 
 
 def test_a_candidate_that_leaves_much_of_a_large_misfit_is_not_named():

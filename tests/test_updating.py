@@ -15,7 +15,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from dragline.compare.diagnose._hypotheses import Problem, channels_on
+from dragline.compare.diagnose._hypotheses import MAX_SHIFT, Problem, channels_on
 from dragline.compare.diagnose._locate import DYNAMIC_CHANNELS
 from dragline.compare.diagnose._updating import model_error, nuisance_correlation, parameter_span_share, update_model
 from dragline.simulate import apply_parameters, dig_maneuver, parse_physics, simulate
@@ -207,3 +207,26 @@ def test_a_mismatch_the_finer_model_also_shows_is_marked_as_the_models_own_error
     assert marked["bucket.x"]["model_error_rms"] == pytest.approx(0.002 / np.sqrt(2), rel=0.03)
     # No model error estimated: nothing is excused.
     assert not any(e["within_model_error"] for e in mark_model_error(entries, time, [], channels))
+
+
+def test_the_clock_shift_is_bounded_about_the_updated_models_own():
+    # A recording 18 ms late against its model (the updating's clock, fitted with a soft prior, may sit
+    # past MAX_SHIFT): bounded about zero the shift stops at MAX_SHIFT and the misfit stays far above
+    # the noise; bounded about the updated clock it is found, and the misfit is the noise's.
+    t = np.arange(0.0, 10.0, 0.005)
+    sim = np.column_stack([np.sin(2 * np.pi * 0.6 * t), 0.5 * np.cos(2 * np.pi * 0.9 * t)])
+    late = 0.018
+    sigma = np.array([5e-3, 5e-3])  # above the linear shift model's own error (about 2.5e-3 at 18 ms)
+    rng = np.random.default_rng(3)
+    measured = np.column_stack([np.sin(2 * np.pi * 0.6 * (t - late)), 0.5 * np.cos(2 * np.pi * 0.9 * (t - late))])
+    measured = measured + rng.normal(size=measured.shape) * sigma
+    rate = np.gradient(sim, t, axis=0)
+    sim_late = sim - late * rate  # the nuisance model is linear in the shift: the lateness is delta = -late
+    plain = Problem(t, measured, sigma, t_stop=6.5)
+    centred = Problem(t, measured, sigma, t_stop=6.5, shift_center=-0.015)
+    assert plain.evaluate(sim)["nuisance"][1] == pytest.approx(-MAX_SHIFT)
+    assert centred.evaluate(sim)["nuisance"][1] == pytest.approx(-late, abs=1e-3)
+    assert plain.evaluate(sim)["full"] > 5 * plain.n_weighted
+    assert centred.evaluate(sim)["full"] < 1.5 * centred.n_weighted
+    # The regressors' problem keeps the centre.
+    assert centred.with_regressors([sim_late - sim]).shift_center == -0.015

@@ -6,7 +6,8 @@ Plain rules over the scored hypotheses (``_hypotheses``), in the order
 
 from __future__ import annotations
 
-__all__ = ["decide", "leftover_share", "EXPLAINED_MIN", "ADEQUATE_RMS", "LEFTOVER_SHARE", "CONFOUNDED"]
+__all__ = ["decide", "leftover_share", "model_error_share", "EXPLAINED_MIN", "ADEQUATE_RMS", "LEFTOVER_SHARE",
+           "CONFOUNDED", "MODEL_ERROR_SHARE", "MODEL_ERROR_FULL"]
 
 # A structured mismatch left: the best must explain this share of it.
 EXPLAINED_MIN = 0.75
@@ -25,6 +26,39 @@ LEFTOVER_SHARE = 0.10
 # A mechanism whose signature correlates with a rig parameter's change
 # beyond this cannot be told apart from it.
 CONFOUNDED = 0.95
+
+# A mechanism must explain at least this share of the chi2 the updated
+# model leaves above noise (``model_error_share``).
+MODEL_ERROR_SHARE = 0.25
+# The budget grows with the excess over the noise expectation (as a share
+# of it), reaching MODEL_ERROR_SHARE at MODEL_ERROR_FULL: a small excess is
+# mostly the measurement's own (reconstruction and calibration errors the
+# noise level misses; recordings of the model itself, updated like any
+# other, left 0.06-0.11), which the surrogates (noise with the residual's
+# own spectrum) judge; a large one is the model's. With the full share at
+# any excess the threshold rose 3-5 fold on those recordings and hid the
+# weakest sheave inertia, bending damping and aero drag.
+MODEL_ERROR_FULL = 0.5
+
+
+def model_error_share(excess, n_weighted):
+    """The share of the updated model's excess chi2 a mechanism must beat: the model-error budget.
+
+    Parameters
+    ----------
+    excess : float
+        chi2 the updated model leaves above its noise expectation.
+    n_weighted : float
+        That expectation (the weighted number of samples).
+
+    Returns
+    -------
+    float
+        ``MODEL_ERROR_SHARE`` times ``min(1, excess / (MODEL_ERROR_FULL n_weighted))``.
+    """
+    if n_weighted <= 0:
+        return MODEL_ERROR_SHARE
+    return MODEL_ERROR_SHARE * min(1.0, max(0.0, excess) / (MODEL_ERROR_FULL * n_weighted))
 
 
 def leftover_share(hypothesis):

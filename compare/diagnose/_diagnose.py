@@ -61,7 +61,7 @@ from .._executor import as_executor
 from .._compare import channel_kind
 from .._decay import free_decay
 from .._metrics import channel_metrics
-from ._decide import decide, leftover_share
+from ._decide import decide, leftover_share, model_error_share
 from ._hypotheses import (
     BLOCK_S,
     DECAY_WEIGHT,
@@ -123,9 +123,6 @@ OFFSET_LIMIT = {"position": 0.010, "angle": math.radians(2.0)}
 # With the rig's tolerances, offsets are judged after updating: an offset
 # this many times OFFSET_LIMIT that no parameter explains is another rig.
 DIFFERENT_RIG = 5.0
-# A mechanism must explain at least this share of the chi2 the updated
-# model leaves above noise (see ``diagnose``).
-MODEL_ERROR_SHARE = 0.25
 # A second mechanism must explain at least this share of the chi2 the named
 # model leaves above noise (see ``diagnose``).
 SECOND_EXCESS_SHARE = 0.4
@@ -634,7 +631,7 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         problem = problem.with_regressors(
             [*update["sensitivities"], *error_directions],
             prior_precision=np.r_[1.0 / tol**2, np.zeros(len(error_directions))],
-            prior_mean=np.r_[-update["coords"], np.zeros(len(error_directions))])
+            prior_mean=np.r_[-update["coords"], np.zeros(len(error_directions))], shift_center=update["shift"])
     else:
         base_sim = nominal_sim
         problem = problem.with_regressors(error_directions)
@@ -714,9 +711,11 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     # (chi2 beyond its expectation) holds what updating could not reach -
     # degenerate parameter pairs, nonlinearity, the finer model's error
     # beyond its fitted direction. A mechanism must explain a real share of
-    # it, not a sliver that any smooth signature would absorb.
+    # it, not a sliver that any smooth signature would absorb. A small
+    # excess is mostly the measurement's own (MODEL_ERROR_FULL).
     excess = max(0.0, nominal_eval["full"] - problem.n_weighted)
-    allowance = MODEL_ERROR_SHARE * excess if update is not None else 0.0
+    share = model_error_share(excess, problem.n_weighted) if update is not None else 0.0
+    allowance = share * excess
     noise_threshold, threshold = threshold, max(threshold, allowance)
 
     e_before = _structure_energy(r0, channels, sigma, width)
@@ -882,7 +881,7 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         "null_test": {"threshold": threshold, "noise_threshold": noise_threshold, "surrogate_quantile": q, "quantile": NULL_QUANTILE,
                       "n_surrogates": NULL_SURROGATES, "min_improvement": MIN_IMPROVEMENT,
                       "dispersion_kappa": kappa, "model_error_allowance": allowance,
-                      "excess_chi2_updated": excess, "model_error_share": MODEL_ERROR_SHARE},
+                      "excess_chi2_updated": excess, "model_error_share": share},
         "channels": {c: {"noise": float(sigma[j]), "offset": offsets[c], "offset_nominal": float(b0[j]),
                          "structure_threshold": structure_threshold(c, sigma[j], width)}
                      for j, c in enumerate(channels)},

@@ -287,7 +287,8 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
         ``initial_state`` its equilibrium, ``rig`` and ``maneuver`` updated,
         ``sensitivities`` (list of (n, c) per unit coordinate, at the
         updated point for the active parameters), ``covariance`` (k, k) of
-        the coordinates, ``offsets`` (c,) left, ``block`` (the JSON
+        the coordinates, ``offsets`` (c,) left, ``shift`` (s) the clock shift
+        fitted with them, ``block`` (the JSON
         ``calibration`` block), ``n_simulations``.
     """
     note = progress or (lambda msg: None)
@@ -338,7 +339,8 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
     block = _calibration_block(params, coords, cov, information, strength, offsets, ctx["channels"], history,
                                failed_names)
     return {"coords": coords, "sim": sim, "initial_state": state, "rig": rig, "maneuver": maneuver,
-            "sensitivities": sens, "covariance": cov, "offsets": offsets, "block": block, "n_simulations": n_sims,
+            "sensitivities": sens, "covariance": cov, "offsets": offsets, "shift": float(nuis[-1]), "block": block,
+            "n_simulations": n_sims,
             "active": active, "strength": strength, "failed": failed}
 
 
