@@ -10,8 +10,11 @@ JSON messages (message encoding ``json``) with JSON schemas (``jsonschema``):
     ``{"format": "dragline.session/1", "rate_hz", "camera_names",
     "image_size": [w, h], "nominal_focal_px", "marker_names",
     "wand_rate_hz", "wand_length", "lframe_points", "maneuver": {col: [...]},
-    "metadata": {...}, "takes": {take: {"topic", "frames", "markers",
-    "rate_hz", "start_ns"}}}`` for the takes ``lframe``, ``wand``, ``trial``.
+    "metadata": {...}, "recorded_ns", "takes": {take: {"topic", "frames",
+    "markers", "rate_hz", "start_ns"}}}`` for the takes ``lframe``, ``wand``,
+    ``trial``. ``recorded_ns`` (optional, null when not known): when the
+    trial's first frame was recorded, ns since the Unix epoch; the log times
+    themselves run from the session's own zero.
 ``/calibration/lframe``, ``/calibration/wand``, ``/trial/centroids``
     (``dragline.Centroids2D``) one message per frame:
     ``{"frame": i, "points": [[[u, v] | null per marker] per camera]}`` (px);
@@ -100,6 +103,9 @@ class CaptureSession:
         Reel commands, columns ``time`` (s), ``hoist_length``, ``drag_length`` (m).
     metadata : dict
         Free-form JSON-able notes; must never reveal the generating physics.
+    recorded_ns : int or None
+        When the trial's first frame was recorded (ns since the Unix epoch),
+        None when not known: results are dated from it.
     """
 
     rate_hz: float
@@ -115,6 +121,7 @@ class CaptureSession:
     lframe_points: np.ndarray | None = None
     maneuver: dict = field(default_factory=dict)
     metadata: dict = field(default_factory=dict)
+    recorded_ns: int | None = None
 
 
 # ----------------------------------------------------------------- file plumbing
@@ -275,6 +282,7 @@ _INFO_SCHEMA = {
         "lframe_points": {"type": ["array", "null"]},
         "maneuver": {"type": "object"},
         "metadata": {"type": "object"},
+        "recorded_ns": {"type": ["integer", "null"], "minimum": 0},
         "takes": {"type": "object"},
     },
 }
@@ -382,8 +390,17 @@ def _session_info(session):
             "nominal_focal_px": _positive("nominal_focal_px", session.nominal_focal_px),
             "marker_names": markers, "wand_rate_hz": wand_rate, "wand_length": wand_length,
             "lframe_points": None if lpts is None else lpts.tolist(),
-            "maneuver": maneuver, "metadata": metadata, "takes": takes}
+            "maneuver": maneuver, "metadata": metadata, "recorded_ns": _recorded_ns(session.recorded_ns),
+            "takes": takes}
     return info, arrays
+
+
+def _recorded_ns(value):
+    if value is None:
+        return None
+    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or not 0 <= value < 2**63:
+        raise ValueError(f"recorded_ns must be a non-negative integer (ns since the Unix epoch) or None, got {value!r}")
+    return int(value)
 
 
 def _frame_ns(take, i):
@@ -549,11 +566,18 @@ def read_session(path):
         wand=arrays["wand"], wand_rate_hz=info.get("wand_rate_hz"),
         wand_length=info.get("wand_length"), lframe=arrays["lframe"],
         lframe_points=None if lpts is None else np.array(lpts, float),
-        maneuver=maneuver, metadata=info.get("metadata", {}))
+        maneuver=maneuver, metadata=info.get("metadata", {}), recorded_ns=info.get("recorded_ns"))
     return session, report
 
 
 # ----------------------------------------------------------------- inspection
+
+def _iso(ns):
+    """ISO 8601 (UTC) of ns since the Unix epoch, or None."""
+    from datetime import datetime, timezone
+
+    return None if ns is None else datetime.fromtimestamp(ns / 1e9, timezone.utc).isoformat()
+
 
 def summarize_mcap(path):
     """JSON-able summary of any MCAP file, with session details for session files.
@@ -597,7 +621,8 @@ def summarize_mcap(path):
             "cameras": info["camera_names"], "markers": info["marker_names"],
             "image_size": info["image_size"], "nominal_focal_px": info["nominal_focal_px"],
             "rate_hz": info["rate_hz"], "wand_rate_hz": info.get("wand_rate_hz"),
-            "wand_length": info.get("wand_length"), "frames": report["frames"],
+            "wand_length": info.get("wand_length"), "recorded_ns": info.get("recorded_ns"),
+            "recorded_at": _iso(info.get("recorded_ns")), "frames": report["frames"],
             "frames_expected": report["frames_expected"], "unseen_fraction": unseen,
             "missing_takes": report["missing_takes"], "notes": report["notes"],
             "maneuver_columns": sorted(info.get("maneuver", {})),

@@ -65,6 +65,9 @@ class SessionInfo(_Strict):
     maneuver: dict[str, list[Optional[float]]] = Field(default_factory=dict,
                                                        description="reel table columns (s, m); null is NaN")
     metadata: dict[str, Any] = Field(default_factory=dict, description="the lab's own notes")
+    recorded_ns: Optional[int] = Field(None, ge=0, lt=2**63,
+                                       description="when the trial's first frame was recorded (ns since the Unix "
+                                                   "epoch); null when not known")
     takes: Takes
 
     @model_validator(mode="after")

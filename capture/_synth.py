@@ -378,7 +378,7 @@ def synthesize_session(result, cameras, seed=0, noise_px=DEFAULTS["noise_px"], d
                        ghost_rate=DEFAULTS["ghost_rate"], wand_ghost_rate=DEFAULTS["wand_ghost_rate"],
                        occlusion=DEFAULTS["occlusion"],
                        wand_frames=DEFAULTS["wand_frames"], wand_rate_hz=DEFAULTS["wand_rate_hz"],
-                       lframe_frames=DEFAULTS["lframe_frames"], metadata=None):
+                       lframe_frames=DEFAULTS["lframe_frames"], metadata=None, recorded_ns=None):
     """Film a simulation: the calibration takes and the trial's 2D centroids.
 
     Parameters
@@ -407,6 +407,9 @@ def synthesize_session(result, cameras, seed=0, noise_px=DEFAULTS["noise_px"], d
         Frames of the static L-frame take (0: no L-frame take).
     metadata : dict, optional
         Notes for the session; must not reveal the physics.
+    recorded_ns : int, optional
+        When the trial's first frame counts as recorded (ns since the Unix
+        epoch); None leaves the session undated (and its files seed-exact).
 
     Returns
     -------
@@ -472,6 +475,7 @@ def synthesize_session(result, cameras, seed=0, noise_px=DEFAULTS["noise_px"], d
         lframe_points=lpts,
         maneuver={col: maneuver[col].to_numpy(float) for col in maneuver.columns},
         metadata=dict(metadata or {}),
+        recorded_ns=recorded_ns,
     )
     truth = {"cameras": cameras, "marker_names": list(names), "time": np.asarray(result.time, float),
              "markers": markers, "exact": exact,

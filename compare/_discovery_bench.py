@@ -117,20 +117,40 @@ OUT_OF_MENU = (("material_damping", 2.5), ("material_damping", 3.5), ("sheave_be
 TRUTH_DISCRETIZATION = "medium"
 
 
-def _truth_world(name, value, seed):
-    """Truth rig, maneuver (with the drawn reel zeros), discretization, physics and drawn coordinates."""
+def _truth_world(name, value, seed, effect=True):
+    """Truth rig, maneuver (with the drawn reel zeros), discretization, physics and drawn coordinates.
+
+    ``effect=False``: the same world without the case's effect (no
+    mechanism; the drawn material damping kept), to measure its size.
+    """
     from ..simulate import apply_parameters, dig_maneuver, draw_parameters, load_rig
 
     rig = load_rig()
     params = rig.tolerances
     coords = draw_parameters(params, np.random.default_rng(seed))
     physics = []
-    if name == "material_damping":  # out of the menu: every rope's and chain's damping scaled
+    if not effect:
+        pass
+    elif name == "material_damping":  # out of the menu: every rope's and chain's damping scaled
         coords = np.array([math.log(value) if p.field == "viscous_damping" else x for p, x in zip(params, coords)])
     elif name is not None:
         physics = [make_mechanism(name, **{MECHANISMS[name]["main"]: value})]
     truth_rig, truth_maneuver = apply_parameters(rig, dig_maneuver(), params, coords)
     return truth_rig, truth_maneuver, TRUTH_DISCRETIZATION, physics, coords
+
+
+def _effect_size(result, without):
+    """How much the case's effect moves the bucket: RMS over the record of position (mm) and pitch (deg).
+
+    ``result`` and ``without``: the truth simulated with and without it.
+    A yardstick for "barely detectable": the lab's markers are good to
+    about a millimetre.
+    """
+    a, b = result.table, without.table
+    d = np.hypot(np.asarray(a["bucket.x"]) - np.asarray(b["bucket.x"]),
+                 np.asarray(a["bucket.z"]) - np.asarray(b["bucket.z"]))
+    p = np.asarray(a["bucket.pitch"]) - np.asarray(b["bucket.pitch"])
+    return {"bucket_mm": float(1000 * np.sqrt(np.mean(d**2))), "bucket_pitch_deg": float(np.degrees(np.sqrt(np.mean(p**2))))}
 
 
 def _run_case(name, value, seed, world="nominal", workdir=None, keep=False):
@@ -153,15 +173,20 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False):
         rig, maneuver, discretization, physics, coords = _truth_world(name, value, seed)
         result = simulate(rig, maneuver, discretization, physics, duration=10.0, rate_hz=200.0)
         recorded_maneuver = dig_maneuver()  # the user's reel table: the drum's zero error is hidden
+        without = None if name is None else simulate(*_truth_world(name, value, seed, effect=False)[:4],
+                                                       duration=10.0, rate_hz=200.0)
     else:
         physics = [] if name is None else [make_mechanism(name, **{MECHANISMS[name]["main"]: value})]
         result = simulate(physics=physics, duration=10.0, rate_hz=200.0)
         recorded_maneuver = result.model.maneuver
+        without = None if name is None else simulate(duration=10.0, rate_hz=200.0)
+    effect = {"bucket_mm": 0.0, "bucket_pitch_deg": 0.0} if without is None else _effect_size(result, without)
     session, _ = synthesize_session(result, default_lab_cameras(seed), seed=seed,
                                     metadata={"generator": "dragline bench discovery"})
     write_session_dir(folder, session, recorded_maneuver)
     made = time.perf_counter() - started
-    out = {"truth": name or "none", "value": value, "seed": seed, "world": world, "synth_seconds": made}
+    out = {"truth": name or "none", "value": value, "seed": seed, "world": world, "synth_seconds": made,
+           "effect": effect}
     t0 = time.perf_counter()
     try:
         doc = diagnose_path(folder, workers=1, seed=seed).doc
@@ -322,7 +347,10 @@ def _realistic_figures(results):
 def _case_line(r):
     fit = f" fitted {r['fitted']:.3g}" if r.get("fitted") is not None and r["verdict"] == r["truth"] else ""
     world = " [realistic]" if r.get("world") == "realistic" else ""
-    return (f"{r['truth']}={r['value']:g}{world} -> {r['verdict']}{fit} ({r.get('diagnosis_seconds', 0):.0f} s)")
+    size = r.get("effect") or {}
+    effect = f", effect {size['bucket_mm']:.2g} mm / {size['bucket_pitch_deg']:.2g} deg" if r["truth"] != "none" and size else ""
+    return (f"{r['truth']}={r['value']:g}{world} -> {r['verdict']}{fit} ({r.get('diagnosis_seconds', 0):.0f} s"
+            f"{effect})")
 
 
 def _summarise(results, wall, workers):

@@ -172,6 +172,7 @@ def _mcap_text(s):
     w, h = se["image_size"]
     lines.append(f"session: {len(se['cameras'])} cameras ({', '.join(se['cameras'])}), {w} x {h} px, "
                  f"nominal focal length {se['nominal_focal_px']:g} px")
+    lines.append(f"  recorded: {se['recorded_at'] or 'not dated'}")
     rates = {"lframe": se["wand_rate_hz"] or se["rate_hz"], "wand": se["wand_rate_hz"] or se["rate_hz"],
              "trial": se["rate_hz"]}
     for take in ("lframe", "wand", "trial"):

@@ -261,8 +261,9 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
 
     ropes = {"simulated/" + r: result.rope_nodes(r) for r in ("hoist_rope", "drag_rope", "dump_rope")}
     markers = {"measured": points} if points is not None else None
+    start_ns = None if session is None else session.recorded_ns
     stage("write results.mcap", write_results, tmp / "results.mcap", {"measured": measured, "simulated": simulated},
-          markers=markers, ropes=ropes)
+          markers=markers, ropes=ropes, start_ns=start_ns)
     files["results"] = str(tmp / "results.mcap")
     return summary
 
@@ -289,8 +290,10 @@ def _builtin_session(tmp, seed, rig):
     lab_rig, lab_maneuver = apply_parameters(rig, maneuver, rig.tolerances, coords)
     truth_run = simulate(lab_rig, lab_maneuver, BUILTIN_TRUTH_DISCRETIZATION, physics=hidden,
                          duration=BUILTIN_DURATION_S, rate_hz=200.0)
+    # Filmed now: the results are dated from this moment, as a lab's from its recording.
     session, truth = synthesize_session(truth_run, default_lab_cameras(seed), seed=seed,
-                                        metadata={"generator": "dragline run", "rig": rig.name})
+                                        metadata={"generator": "dragline run", "rig": rig.name},
+                                        recorded_ns=time.time_ns())
     write_session_dir(tmp / "session", session, maneuver)
     (tmp / "truth").mkdir()
     write_truth(tmp / "truth", truth, {"physics": [{"name": m.name, "parameters": dict(m.parameters)} for m in hidden],

@@ -5,7 +5,6 @@ summary index (chunk offsets and times), and Hamilton quaternion algebra
 implemented here.
 """
 
-import base64
 import json
 import os
 
@@ -13,6 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from mcap.reader import make_reader
+from mcap_protobuf.decoder import DecoderFactory
 
 from dragline.capture._foxglove import quaternion_from_matrix, write_results
 from dragline.capture._mcap_io import CaptureSession, read_session, summarize_mcap, write_session
@@ -70,6 +70,7 @@ def assert_same_session(a, b):
     for k in a.maneuver:
         np.testing.assert_array_equal(a.maneuver[k], b.maneuver[k])
     assert a.metadata == b.metadata
+    assert a.recorded_ns == b.recorded_ns
 
 
 # ----------------------------------------------------------------- session round trips
@@ -86,6 +87,16 @@ def test_session_round_trip_is_exact(tmp_path):
     assert report["truncated"] is False and report["lost"] == "nothing"
     assert report["frames"] == {"lframe": 4, "wand": 30, "trial": 40}
     assert report["missing_takes"] == []
+    assert back.recorded_ns is None  # not dated: stays undated
+
+
+def test_a_dated_session_keeps_its_recording_time_to_the_nanosecond(tmp_path):
+    when = 1_764_000_000_123_456_789  # beyond float64's integer precision: must not pass through a float
+    session = CaptureSession(**{**make_session(seed=2).__dict__, "recorded_ns": when})
+    write_session(tmp_path, session)
+    back, _ = read_session(tmp_path)
+    assert back.recorded_ns == when
+    assert summarize_mcap(tmp_path)["session"]["recorded_at"] == "2025-11-24T16:00:00.123457+00:00"
 
 
 def test_session_messages_follow_the_documented_layout(tmp_path):
@@ -324,6 +335,8 @@ def test_missing_file_and_results_file_are_value_errors(tmp_path):
     (dict(marker_names=["a", "a", "b", "c", "d"]), "marker_names"),
     (dict(metadata={"truth_dir": "/tmp/x"}), "reveal"),
     (dict(metadata={"note": "made with pulley_friction:mu=0.1"}), "mechanism"),
+    (dict(recorded_ns=-1), "recorded_ns"),
+    (dict(recorded_ns=1.7e18), "recorded_ns"),
 ])
 def test_bad_sessions_are_refused_and_leave_no_file(tmp_path, change, message):
     target = tmp_path / "capture.mcap"
@@ -431,12 +444,16 @@ def _table(n, dt=0.01, t0=0.0, seed=0, drag_angles=True):
 
 
 def _read_results(path):
+    """Summary and (schema, channel, message, decoded protobuf) per message, in file order."""
     with open(path, "rb") as fh:
-        reader = make_reader(fh)
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
         summary = reader.get_summary()
-        out = [(schema, channel, message, json.loads(message.data))
-               for schema, channel, message in reader.iter_messages(log_time_order=False)]
+        out = list(reader.iter_decoded_messages(log_time_order=False))
     return summary, out
+
+
+def _xyz(v):
+    return [v.x, v.y, v.z]
 
 
 def test_results_file_is_foxglove_shaped(tmp_path):
@@ -452,14 +469,14 @@ def test_results_file_is_foxglove_shaped(tmp_path):
                          markers={"measured": markers}, ropes={"simulated/hoist_rope": rope}, start_ns=start)
     summary, msgs = _read_results(path)
 
+    # Foxglove's own schemas, protobuf-encoded: the decoder builds each message type from the file's schema.
     assert {s.name for s in summary.schemas.values()} == {
         "foxglove.FrameTransforms", "foxglove.SceneUpdate", "foxglove.PointCloud"}
-    for s in summary.schemas.values():
-        assert s.encoding == "jsonschema" and json.loads(s.data)["title"] == s.name
+    assert {s.encoding for s in summary.schemas.values()} == {"protobuf"}
     assert {c.topic for c in summary.channels.values()} == {
         "/measured/transforms", "/measured/scene", "/measured/markers",
         "/simulated/transforms", "/simulated/scene"}
-    assert {c.message_encoding for c in summary.channels.values()} == {"json"}
+    assert {c.message_encoding for c in summary.channels.values()} == {"protobuf"}
     log_times = [m.log_time for _, _, m, _ in msgs]
     assert log_times == sorted(log_times)  # sources interleaved in time order
 
@@ -471,26 +488,24 @@ def test_results_file_is_foxglove_shaped(tmp_path):
         i = int(np.argmin(np.abs(table["time"].to_numpy() - (message.log_time - start) / 1e9)))
         t_ns = start + round(table["time"][i] * 1e9)
         assert message.log_time == t_ns
-        stamp = {"sec": t_ns // 10**9, "nsec": t_ns % 10**9}
+        stamp = (t_ns // 10**9, t_ns % 10**9)
         seen[kind] += 1
+        assert doc.DESCRIPTOR.full_name == schema.name
         if kind == "transforms":
-            assert schema.name == "foxglove.FrameTransforms" and set(doc) == {"transforms"}
             children = set()
-            up, *bodies = doc["transforms"]
+            up, *bodies = doc.transforms
             # the display frame: world half a turn about x, so that z is up
-            assert (up["parent_frame_id"], up["child_frame_id"]) == ("world_z_up", "world")
-            assert up["timestamp"] == stamp and up["translation"] == {"x": 0.0, "y": 0.0, "z": 0.0}
+            assert (up.parent_frame_id, up.child_frame_id) == ("world_z_up", "world")
+            assert (up.timestamp.seconds, up.timestamp.nanos) == stamp and _xyz(up.translation) == [0.0, 0.0, 0.0]
             down = np.array([0.0, 0.0, 1.0])  # world's K, pointing down
-            q = np.array([up["rotation"][k] for k in "xyzw"])
+            q = np.array([getattr(up.rotation, k) for k in "xyzw"])
             np.testing.assert_allclose(_rotate(q, down[None])[0], [0.0, 0.0, -1.0], atol=1e-15)
             for tf in bodies:
-                assert set(tf) == {"timestamp", "parent_frame_id", "child_frame_id",
-                                   "translation", "rotation"}
-                assert tf["timestamp"] == stamp and tf["parent_frame_id"] == "world"
-                body = tf["child_frame_id"].split("/")[1]
-                children.add(tf["child_frame_id"])
-                assert tf["translation"] == {k: table[f"{body}.{k}"][i] for k in "xyz"}
-                q = np.array([tf["rotation"][k] for k in "xyzw"])
+                assert (tf.timestamp.seconds, tf.timestamp.nanos) == stamp and tf.parent_frame_id == "world"
+                body = tf.child_frame_id.split("/")[1]
+                children.add(tf.child_frame_id)
+                assert _xyz(tf.translation) == [table[f"{body}.{k}"][i] for k in "xyz"]
+                q = np.array([getattr(tf.rotation, k) for k in "xyzw"])
                 T = body_to_inertial(*(table[f"{body}.{k}"][i] for k in ("roll", "pitch", "yaw")))
                 np.testing.assert_allclose(_rotate(q, np.eye(3)), T.T, atol=1e-12)
             expected = {f"{source}/{b}" for b in ("bucket", "spreader_bar", "hoist_cluster",
@@ -501,45 +516,35 @@ def test_results_file_is_foxglove_shaped(tmp_path):
                     expected.discard("measured/bucket")
             assert children == expected
         elif kind == "scene":
-            assert schema.name == "foxglove.SceneUpdate" and set(doc) == {"deletions", "entities"}
-            ents = {e["id"]: e for e in doc["entities"]}
+            ents = {e.id: e for e in doc.entities}
             for e in ents.values():
-                assert set(e) == {"timestamp", "frame_id", "id", "lifetime", "frame_locked",
-                                  "metadata", "arrows", "cubes", "spheres", "cylinders", "lines",
-                                  "triangles", "texts", "models"}
-                assert e["timestamp"] == stamp and e["frame_id"] == "world"
+                assert (e.timestamp.seconds, e.timestamp.nanos) == stamp and e.frame_id == "world"
             if source == "measured" and i == 3:
                 assert "measured/bucket" not in ents
-                assert {"timestamp": stamp, "type": 0, "id": "measured/bucket"} in doc["deletions"]
+                (gone,) = doc.deletions
+                assert (gone.timestamp.seconds, gone.timestamp.nanos) == stamp and gone.id == "measured/bucket"
+                assert gone.type == 0  # MATCHING_ID
             else:
-                (cube,) = ents[f"{source}/bucket"]["cubes"]
-                assert set(cube) == {"pose", "size", "color"}
-                assert cube["size"] == {"x": 0.381, "y": 0.203, "z": 0.152}
-                assert cube["pose"]["position"] == {k: table[f"bucket.{k}"][i] for k in "xyz"}
-                assert set(cube["pose"]["orientation"]) == set("xyzw")
-                assert set(cube["color"]) == set("rgba")
+                (cube,) = ents[f"{source}/bucket"].cubes
+                assert _xyz(cube.size) == [0.381, 0.203, 0.152]
+                assert _xyz(cube.pose.position) == [table[f"bucket.{k}"][i] for k in "xyz"]
+                assert 0.0 < cube.color.a <= 1.0
             if source == "measured":
-                (sphere,) = ents["measured/drag_cluster"]["spheres"]
-                assert ents["measured/drag_cluster"]["cubes"] == []
-                assert sphere["pose"]["position"] == {
-                    k: table[f"drag_cluster.{k}"][i] for k in "xyz"}
+                (sphere,) = ents["measured/drag_cluster"].spheres
+                assert len(ents["measured/drag_cluster"].cubes) == 0
+                assert _xyz(sphere.pose.position) == [table[f"drag_cluster.{k}"][i] for k in "xyz"]
             else:
-                (line,) = ents["simulated/hoist_rope"]["lines"]
-                assert set(line) == {"type", "pose", "thickness", "scale_invariant", "points",
-                                     "color", "colors", "indices"}
-                assert line["type"] == 0
-                assert [[p[k] for k in "xyz"] for p in line["points"]] == rope[i].tolist()
+                (line,) = ents["simulated/hoist_rope"].lines
+                assert line.type == 0  # LINE_STRIP
+                assert [_xyz(p) for p in line.points] == rope[i].tolist()
         else:
-            assert schema.name == "foxglove.PointCloud"
-            assert set(doc) == {"timestamp", "frame_id", "pose", "point_stride", "fields", "data"}
-            assert doc["timestamp"] == stamp and doc["frame_id"] == "world"
-            fields = {f["name"]: f for f in doc["fields"]}
-            assert set(fields) == set("xyz") and all(f["type"] == 8 for f in fields.values())
-            raw = base64.b64decode(doc["data"])
-            n = len(raw) // doc["point_stride"]
-            pts = np.array([[np.frombuffer(raw, "<f8", 1, j * doc["point_stride"]
-                                           + fields[k]["offset"])[0] for k in "xyz"]
-                            for j in range(n)]).reshape(n, 3)
+            assert (doc.timestamp.seconds, doc.timestamp.nanos) == stamp and doc.frame_id == "world"
+            fields = {f.name: f for f in doc.fields}
+            assert set(fields) == set("xyz") and all(f.type == 8 for f in fields.values())  # FLOAT64
+            raw = doc.data
+            n = len(raw) // doc.point_stride
+            pts = np.array([[np.frombuffer(raw, "<f8", 1, j * doc.point_stride + fields[k].offset)[0]
+                             for k in "xyz"] for j in range(n)]).reshape(n, 3)
             want = markers[i][np.isfinite(markers[i]).all(axis=1)]
             np.testing.assert_array_equal(pts, want)
     assert seen == {"transforms": 19, "scene": 19, "markers": 12}

@@ -31,6 +31,22 @@ def test_builtin_run_writes_every_output(demo):
     assert not list(out.parent.glob(".*partial*"))
 
 
+def test_builtin_results_are_dated_from_the_sessions_recording(demo):
+    from mcap.reader import make_reader
+
+    from dragline.capture import read_session
+
+    out, _ = demo
+    session, _ = read_session(out / "session")
+    assert session.recorded_ns is not None  # filmed during this run
+    with open(out / "results.mcap", "rb") as fh:
+        reader = make_reader(fh)
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}["dragline"]
+        first = min(m.log_time for _, _, m in reader.iter_messages())
+    assert meta["log_time_origin_source"] == "the recording's start"
+    assert first == session.recorded_ns  # the trial's first frame, time 0 of the measured table
+
+
 def test_the_session_does_not_reveal_the_hidden_physics(demo):
     out, _ = demo
     name = _run.BUILTIN_HIDDEN_PHYSICS.split(":")[0]
