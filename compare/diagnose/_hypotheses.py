@@ -660,4 +660,3 @@ def signature_match(problem, nominal_residual, signature):
     g = _weighted_signal(problem, signature)
     den = math.sqrt(float((z * z).sum()) * float((g * g).sum()))
     return float((z * g).sum()) / den if den > 0 else 0.0
-
