@@ -15,6 +15,13 @@ So each of these signals, in the command's own process:
 
 A forked worker leaves with ``os._exit``: what it holds is in memory, and
 the command's process owns and removes every file.
+
+Stopping a process pool's workers races with the pool's own manager thread
+(CPython 3.11): the main thread, unwinding, cancels the futures still
+queued while the manager thread, seeing the workers gone, sets an error on
+each, and one already cancelled raises ``InvalidStateError`` there. Its
+traceback would print above the one line; after a signal that one error,
+from that thread, is not reported.
 """
 
 from __future__ import annotations
@@ -22,7 +29,9 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
+import threading
 import time
+from concurrent.futures import InvalidStateError
 
 __all__ = ["Terminated", "handle_termination"]
 
@@ -60,10 +69,20 @@ def _stop_workers():
             child.join(1.0)
 
 
+def _quiet_pool_race(previous):
+    def hook(args):
+        if issubclass(args.exc_type, InvalidStateError) and type(args.thread).__name__ == "_ExecutorManagerThread":
+            return
+        previous(args)
+    return hook
+
+
 def _on_signal(signum, frame):
     # One stop is enough: a second signal during the clean-up must not cut it short.
     for s in SIGNALS:
         signal.signal(s, signal.SIG_IGN)
+    if os.getpid() == _owner_pid:
+        threading.excepthook = _quiet_pool_race(threading.excepthook)
     _stop_workers()
     if os.getpid() != _owner_pid:
         os._exit(128 + signum)
@@ -80,6 +99,7 @@ class handle_termination:
     def __enter__(self):
         global _owner_pid
         self._saved = {}
+        self._excepthook = threading.excepthook
         self._owner = _owner_pid
         _owner_pid = os.getpid()
         try:
@@ -97,5 +117,6 @@ class handle_termination:
     def __exit__(self, *exc):
         global _owner_pid
         self._restore()
+        threading.excepthook = self._excepthook
         _owner_pid = self._owner
         return False
