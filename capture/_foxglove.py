@@ -7,9 +7,9 @@ whose orientation is unknown, a line strip per rope) and ``/s/markers``
 (``foxglove.PointCloud``, FLOAT64 x, y, z). The messages are built and
 written by Foxglove's own SDK (``foxglove-sdk``): its message classes and
 schemas are Foxglove's, protobuf-encoded, so the file follows the official
-schemas by construction and follows them as they evolve (docs/schemas.md
-says why the SDK rather than carried JSON schemas: a third of the size, and
-faster to write).
+schemas by construction and follows them as they evolve (docs/interfaces.md
+says why the SDK rather than JSON messages with carried JSON schemas: the
+file is smaller and written several times faster).
 ``world`` is the inertial frame of docs/conventions.md unchanged: K (z) points
 DOWN. Every transforms message also holds ``world_z_up`` -> ``world``, a half
 turn about x: pick ``world_z_up`` as the 3D panel's display frame and the rig
