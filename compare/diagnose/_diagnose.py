@@ -846,12 +846,13 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         # alone in its truth, a sheave inertia took 24 % of it and beat the
         # noise threshold 4.6 times; the inertia hidden under aero drag in
         # tests/test_diagnose.py takes 64 %).
-        allowance = 0.0
+        # (Its own name: the JSON's model_error_allowance is the first round's.)
+        second_allowance = 0.0
         if update is not None:
             named_excess = second_problem.evaluate(base_sim)["full"] - second_problem.n_weighted
-            allowance = SECOND_EXCESS_SHARE * max(0.0, named_excess)
+            second_allowance = SECOND_EXCESS_SHARE * max(0.0, named_excess)
         second = second_round(second_problem, second_ctx, runnable, named, base_sim,
-                              workers=workers, seed=seed, progress=note, allowance=allowance)
+                              workers=workers, seed=seed, progress=note, allowance=second_allowance)
         also = [h for h in second["candidates"] if h["significant"]]
         if also:
             h = also[0]
