@@ -129,11 +129,9 @@ def _truth_world(name, value, seed, effect=True):
     params = rig.tolerances
     coords = draw_parameters(params, np.random.default_rng(seed))
     physics = []
-    if not effect:
-        pass
-    elif name == "material_damping":  # out of the menu: every rope's and chain's damping scaled
+    if effect and name == "material_damping":  # out of the menu: every rope's and chain's damping scaled
         coords = np.array([math.log(value) if p.field == "viscous_damping" else x for p, x in zip(params, coords)])
-    elif name is not None:
+    elif effect and name is not None:
         physics = [make_mechanism(name, **{MECHANISMS[name]["main"]: value})]
     truth_rig, truth_maneuver = apply_parameters(rig, dig_maneuver(), params, coords)
     return truth_rig, truth_maneuver, TRUTH_DISCRETIZATION, physics, coords
@@ -150,7 +148,8 @@ def _effect_size(result, without):
     d = np.hypot(np.asarray(a["bucket.x"]) - np.asarray(b["bucket.x"]),
                  np.asarray(a["bucket.z"]) - np.asarray(b["bucket.z"]))
     p = np.asarray(a["bucket.pitch"]) - np.asarray(b["bucket.pitch"])
-    return {"bucket_mm": float(1000 * np.sqrt(np.mean(d**2))), "bucket_pitch_deg": float(np.degrees(np.sqrt(np.mean(p**2))))}
+    return {"bucket_mm": float(1000 * np.sqrt(np.mean(d**2))),
+            "bucket_pitch_deg": float(np.degrees(np.sqrt(np.mean(p**2))))}
 
 
 def _run_case(name, value, seed, world="nominal", workdir=None, keep=False):
@@ -348,7 +347,8 @@ def _case_line(r):
     fit = f" fitted {r['fitted']:.3g}" if r.get("fitted") is not None and r["verdict"] == r["truth"] else ""
     world = " [realistic]" if r.get("world") == "realistic" else ""
     size = r.get("effect") or {}
-    effect = f", effect {size['bucket_mm']:.2g} mm / {size['bucket_pitch_deg']:.2g} deg" if r["truth"] != "none" and size else ""
+    effect = (f", effect {size['bucket_mm']:.2g} mm / {size['bucket_pitch_deg']:.2g} deg"
+              if r["truth"] != "none" and size else "")
     return (f"{r['truth']}={r['value']:g}{world} -> {r['verdict']}{fit} ({r.get('diagnosis_seconds', 0):.0f} s"
             f"{effect})")
 
