@@ -17,7 +17,7 @@ def add_parser(sub):
     p.add_argument("--repeats", type=int, default=5, help="timed runs per figure (median reported)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--quick", action="store_true", help="discovery: the reduced case list")
-    p.add_argument("--limits", action="store_true", help="discovery: cases at the detection limit")
+    p.add_argument("--limits", action="store_true", help="discovery: cases at the detection limit (with --realism: the realistic world's)")
     p.add_argument("--realism", action="store_true",
                    help="discovery: truth rigs drawn within the rig's tolerances, simulated finer than the "
                         "diagnosis, with out-of-menu physics among the cases")

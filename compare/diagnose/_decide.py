@@ -6,6 +6,8 @@ Plain rules over the scored hypotheses (``_hypotheses``), in the order
 
 from __future__ import annotations
 
+from ._band import RESOLVED_HZ
+
 __all__ = ["decide", "leftover_share", "model_error_share", "EXPLAINED_MIN", "ADEQUATE_RMS", "LEFTOVER_SHARE",
            "CONFOUNDED", "MODEL_ERROR_SHARE", "MODEL_ERROR_FULL"]
 
@@ -97,7 +99,11 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
     1. Constant offsets beyond tolerance: "unexplained" (the geometry
        differs; a dynamic mechanism cannot be trusted).
     2. No significant candidate: "none" when the nominal model leaves no
-       structured mismatch, else "unexplained".
+       structured mismatch, else "unexplained". Significant means beyond
+       the threshold *and*, in the band the model resolves alone, beyond
+       ``_band.RESOLVED_MIN`` of it; a candidate beyond the threshold only
+       with the band above is marked ``unresolved`` and named in the
+       reason, not in the verdict.
     3. The best significant candidate at either end of its plausible
        range, or at the end of what could be simulated: "unexplained" (the
        effect is larger, or other, than that mechanism could plausibly give).
@@ -130,16 +136,26 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
     sig = [h for h in hypotheses if h.get("significant")]
     if not sig:
         if structured_before:
-            return "unexplained", (
+            verdict, reason = "unexplained", (
                 f"structured mismatch beyond noise ({len(structured_before)} channel windows, largest at "
                 f"{where(structured_before)}) that no candidate reduces more than noise alone would "
                 f"(held-out threshold {threshold:.1f})")
-        if updates:
-            return "none", (f"the updated model fits within measurement noise (updates: {'; '.join(updates)}): no "
-                            f"structured mismatch is left, and no candidate improves held-out data more than noise "
-                            f"alone would (threshold {threshold:.1f})")
-        return "none", (f"the nominal model fits within measurement noise: no structured mismatch, and no "
-                        f"candidate improves held-out data more than noise alone would (threshold {threshold:.1f})")
+        elif updates:
+            verdict, reason = "none", (
+                f"the updated model fits within measurement noise (updates: {'; '.join(updates)}): no structured "
+                f"mismatch is left, and no candidate improves held-out data more than noise alone would "
+                f"(threshold {threshold:.1f})")
+        else:
+            verdict, reason = "none", (
+                "the nominal model fits within measurement noise: no structured mismatch, and no candidate "
+                f"improves held-out data more than noise alone would (threshold {threshold:.1f})")
+        unresolved = [h for h in hypotheses if h.get("unresolved")]
+        if unresolved:
+            h = unresolved[0]
+            reason += (f"; {h['name']} improved held-out data by {h['improvement']:.1f}, but by only "
+                       f"{h['resolved_improvement']:.1f} below {RESOLVED_HZ:g} Hz: the rest is above, where the "
+                       "model's own discretization changes the motion, and is not counted")
+        return verdict, reason
     best = sig[0]
     if best["at_bound"]:
         where_ = {"upper": "upper end of its plausible range", "lower": "lower end of its plausible range",

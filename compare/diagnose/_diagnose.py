@@ -61,6 +61,7 @@ from .._executor import as_executor
 from .._compare import channel_kind
 from .._decay import free_decay
 from .._metrics import channel_metrics
+from ._band import RESOLVED_HZ, RESOLVED_MIN, band_improvement
 from ._decide import decide, leftover_share, model_error_share
 from ._hypotheses import (
     BLOCK_S,
@@ -730,10 +731,11 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
             res = problem.residual(s["sim"], s["evaluation"]["nuisance"])
             frac = 1.0 - _structure_energy(res, channels, sigma, width) / e_before if e_before > 0 else 0.0
             sig_match = signature_match(problem, r0, s["sim"] - base_sim)
+            band = band_improvement(problem, r0, res)
             residuals[c["name"]] = res
             fitted_series[c["name"]] = M - res
         else:
-            frac, sig_match = 0.0, 0.0
+            frac, sig_match, band = 0.0, 0.0, {"resolved": 0.0, "resolved_share": 0.0}
         uncertainty = _uncertainty(s, main, kappa)
         confounders = (nuisance_correlation(problem, s["sim"] - base_sim, update)
                        if update is not None and s["value"] > 0 else [])
@@ -756,7 +758,14 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
             "improvement": s["improvement"],
             "threshold": threshold,
             "score": s["improvement"] / threshold,
-            "significant": bool(s["improvement"] > threshold and value > 0),
+            # Evidence only where the model does not resolve the motion is
+            # not evidence (``_band``).
+            "significant": bool(s["improvement"] > threshold and value > 0
+                                and band["resolved"] >= RESOLVED_MIN * threshold),
+            "unresolved": bool(s["improvement"] > threshold and value > 0
+                               and band["resolved"] < RESOLVED_MIN * threshold),
+            "resolved_share": band["resolved_share"],
+            "resolved_improvement": band["resolved"],
             "signature_match": sig_match,
             "nuisance_correlation": confounders,
             "parameter_span_share": (parameter_span_share(problem, s["sim"] - base_sim, update)
@@ -892,7 +901,8 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         "source": source or {},
         "settings": {"discretization": discretization if isinstance(discretization, str) else dict(discretization),
                      "candidates": [c["name"] for c in cands], "decay_weight": DECAY_WEIGHT,
-                     "block_s": BLOCK_S, "lowpass_s": LOWPASS_S, "rate_hz": rate},
+                     "block_s": BLOCK_S, "lowpass_s": LOWPASS_S, "rate_hz": rate,
+                     "resolved_hz": RESOLVED_HZ, "resolved_min": RESOLVED_MIN},
         "executor": as_executor(workers).describe(),
         "timing": {"seconds": _time.perf_counter() - started,
                    "simulations": 1 + sum(h["n_simulations"] for h in hypotheses)

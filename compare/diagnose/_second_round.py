@@ -13,6 +13,7 @@ significant second one is reported beside it.
 from __future__ import annotations
 
 from ...simulate import make_mechanism
+from ._band import RESOLVED_MIN, band_improvement
 from ._hypotheses import fit_candidates, null_threshold, score_candidate
 
 __all__ = ["second_round"]
@@ -45,7 +46,9 @@ def second_round(problem, ctx, candidates, named, base_sim, workers=2, seed=0, p
     dict
         ``given`` (the named mechanism and its parameters), ``threshold``
         (chi2: the larger of ``noise_threshold`` and ``allowance``), ``candidates`` (best first: ``name``, ``parameters``,
-        ``improvement``, ``score``, ``significant``), ``n_simulations``.
+        ``improvement``, ``score``, ``resolved_improvement``, ``significant``: beyond the threshold,
+        inside its range and beyond ``_band.RESOLVED_MIN`` of it below ``_band.RESOLVED_HZ``),
+        ``n_simulations``.
     """
     main = named["main_parameter"]
     value = named["parameters"][main]
@@ -64,15 +67,20 @@ def second_round(problem, ctx, candidates, named, base_sim, workers=2, seed=0, p
     signatures = [s["signature_sim"] - base_sim for s in scored.values() if s["signature_sim"] is not None]
     noise_threshold, _ = null_threshold(problem, residual, signatures, seed=seed + 1)
     threshold = max(noise_threshold, allowance)
+    base_residual = problem.residual(base_sim)
     found = []
     for c in others:
         s = scored[c["name"]]
+        resolved = (band_improvement(problem, base_residual, problem.residual(s["sim"], s["evaluation"]["nuisance"]))
+                    ["resolved"] if s["value"] > 0 else 0.0)
         found.append({
             "name": c["name"],
             "parameters": {c["main"]: s["value"]},
             "improvement": s["improvement"],
             "score": s["improvement"] / threshold,
-            "significant": bool(s["improvement"] > threshold and s["value"] > 0 and not s["at_bound"]),
+            "resolved_improvement": resolved,
+            "significant": bool(s["improvement"] > threshold and s["value"] > 0 and not s["at_bound"]
+                                and resolved >= RESOLVED_MIN * threshold),
             "at_bound": s["at_bound"],
         })
     found.sort(key=lambda h: -h["improvement"])
