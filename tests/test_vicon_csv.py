@@ -107,6 +107,42 @@ def test_real_devices_and_trajectories_sections_rates_and_frames():
     assert export.sections["devices"].sub_frame.tolist() == [0, 1, 2, 0, 1, 2]
 
 
+PYOMECA_TRAJ = REAL / "pyomeca_nexus_trajectories_with_gaps.csv"
+PYOMECA_EMG = REAL / "pyomeca_nexus_devices_emg.csv"
+
+
+def test_real_export_of_another_lab_reads_every_marker_gap_and_frame():
+    # pyomeca's Nexus export: a Trajectories section whose every line is
+    # padded with commas to the full width, 51 markers of two subjects.
+    raw = PYOMECA_TRAJ.read_text().splitlines()
+    cells = [line.split(",") for line in raw]
+    names = [c for c in cells[2] if c]
+    rows = cells[5:]
+    n = len(names)
+    expected = np.array([[float(c) if c else math.nan for c in r[2:2 + 3 * n]] for r in rows]) / 1000.0
+    export = read_vicon_csv(PYOMECA_TRAJ)
+    assert export.trajectories.rate_hz == float(cells[1][0]) == 100.0
+    assert export.trajectories.frame.tolist() == [int(r[0]) for r in rows] == list(range(1, 121))
+    got_names, got = marker_trajectories(export)
+    assert got_names == names and len(names) == 51
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(expected.reshape(len(rows), n, 3)))
+    np.testing.assert_allclose(got, expected.reshape(len(rows), n, 3), rtol=1e-14, atol=0, equal_nan=True)
+    assert np.isnan(got).any()  # the gap SOURCES.md names is kept as NaN, never filled
+
+
+def test_real_devices_only_export_holds_no_markers_and_says_so():
+    export = read_vicon_csv(PYOMECA_EMG)
+    devices = export.sections["devices"]
+    raw = raw_section(PYOMECA_EMG, "Devices")
+    assert devices.rate_hz == raw["rate"] == 2000.0
+    assert devices.sub_frame.tolist() == [int(r[1]) for r in raw["rows"]]
+    assert max(devices.sub_frame) == 19  # 2000 Hz devices under 100 Hz frames
+    assert export.trajectories is None
+    summary = summarize_vicon_csv(PYOMECA_EMG)
+    assert summary["trajectories"] is None
+    assert [(s["name"], s["rate_hz"], s["frames"]) for s in summary["sections"]] == [("Devices", 2000.0, 10)]
+
+
 def test_real_devices_values_and_column_names():
     devices = read_vicon_csv(DEV_TRAJ).sections["devices"]
     raw = raw_section(DEV_TRAJ, "Devices")
