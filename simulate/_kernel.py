@@ -459,7 +459,8 @@ def dissipate(t, y, dt, m, work):
         el_arm[e, 0], el_arm[e, 1], el_arm[e, 2] = a0, a1, a2
         el_arm[e, 3], el_arm[e, 4], el_arm[e, 5] = b0, b1, b2
     if has_joints:
-        _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o_part, o_vel)
+        _joint_geometry(m, Lseg, el_len, el_arm, work.el_inv_len, work.el_inv_mass)
+        _joint_impulses(y, dt, m, T, fpos, fvel, el_u, work.el_inv_len, work.el_inv_mass, el_T, el_arm, o_part, o_vel)
     if has_rings:
         ring_seg, ring_mu, ring_eA, ring_eB = m.ring_seg, m.ring_mu, m.ring_eA, m.ring_eB
         for rg in range(ring_seg.shape[0]):
@@ -480,15 +481,20 @@ def dissipate(t, y, dt, m, work):
 
 
 @njit(cache=True, inline="always")
-def _inverse_mass(kind, idx, arm0, arm1, arm2, part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg):
-    """1/m of an element end for a bending impulse; a body end adds its rotation."""
+def _end_inverse_masses(kind, idx, arm0, arm1, arm2, part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg):
+    """An element end's inverse mass (1/kg): to a linear impulse, and to a bending one (a body adds its rotation).
+
+    Arrays, not the kernel model: passed the model's tuple, this loop ran 30 times slower.
+    """
     if kind == KIND_PARTICLE:
         s = part_seg[idx]
-        return seg_npart[s] / (seg_rho[s] * Lseg[s])
+        lin = seg_npart[s] / (seg_rho[s] * Lseg[s])
+        return lin, lin
     if kind == KIND_BODY:
         imin = min(body_I[idx, 0, 0], min(body_I[idx, 1, 1], body_I[idx, 2, 2]))
-        return 1.0 / body_mass[idx] + (arm0 * arm0 + arm1 * arm1 + arm2 * arm2) / imin
-    return 0.0
+        lin = 1.0 / body_mass[idx]
+        return lin, lin + (arm0 * arm0 + arm1 * arm1 + arm2 * arm2) / imin
+    return 0.0, 0.0
 
 
 @njit(cache=True, inline="always")
@@ -504,30 +510,56 @@ def _turn(b, hx, hy, hz, y, body_Iinv, T):
 
 
 @njit(cache=True, inline="always")
-def _kick(kind, idx, arm0, arm1, arm2, jx, jy, jz, y, part_seg, seg_npart, seg_rho, body_mass, body_Iinv, T, Lseg, o_vel):
-    """Apply a linear impulse (N s) at an element end: particle or body point."""
+def _kick(kind, idx, arm0, arm1, arm2, jx, jy, jz, inv, y, body_Iinv, T, o_vel):
+    """Apply a linear impulse (N s) at an element end (``inv``: its linear inverse mass): particle or body point."""
     if kind == KIND_PARTICLE:
-        s = part_seg[idx]
-        inv = seg_npart[s] / (seg_rho[s] * Lseg[s])
         y[o_vel + 3 * idx] += jx * inv
         y[o_vel + 3 * idx + 1] += jy * inv
         y[o_vel + 3 * idx + 2] += jz * inv
     elif kind == KIND_BODY:
         o = 12 * idx
-        invm = 1.0 / body_mass[idx]
-        y[o + 3] += jx * invm
-        y[o + 4] += jy * invm
-        y[o + 5] += jz * invm
+        y[o + 3] += jx * inv
+        y[o + 4] += jy * inv
+        y[o + 5] += jz * inv
         _turn(idx, arm1 * jz - arm2 * jy, arm2 * jx - arm0 * jz, arm0 * jy - arm1 * jx, y, body_Iinv, T)
 
 
 @njit(cache=True)
-def _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o_part, o_vel):
+def _joint_geometry(m, Lseg, el_len, el_arm, el_inv_len, el_inv_mass):
+    """What the joints' sweep needs of the geometry: 1 / length, each end's linear and bending inverse mass.
+
+    Its own loop, ahead of the sweep: there every division waited on the
+    joint before (Gauss-Seidel), which made the sweep twice as slow; stored
+    from ``dissipate``'s geometry pass instead, the stores slowed that pass
+    more than they saved.
+    """
+    el_ka, el_ia, el_kb, el_ib = m.el_ka, m.el_ia, m.el_kb, m.el_ib
+    part_seg, seg_npart, seg_rho, body_mass, body_I = m.part_seg, m.seg_npart, m.seg_rho, m.body_mass, m.body_I
+    for e in range(el_len.shape[0]):
+        if el_len[e] <= 0.0:
+            continue  # no mechanism on its segment: never swept
+        el_inv_len[e] = 1.0 / el_len[e]
+        lin, bend = _end_inverse_masses(el_ka[e], el_ia[e], el_arm[e, 0], el_arm[e, 1], el_arm[e, 2], part_seg,
+                                        seg_npart, seg_rho, body_mass, body_I, Lseg)
+        el_inv_mass[e, 0] = lin
+        el_inv_mass[e, 1] = bend
+        lin, bend = _end_inverse_masses(el_kb[e], el_ib[e], el_arm[e, 3], el_arm[e, 4], el_arm[e, 5], part_seg,
+                                        seg_npart, seg_rho, body_mass, body_I, Lseg)
+        el_inv_mass[e, 2] = lin
+        el_inv_mass[e, 3] = bend
+
+
+@njit(cache=True)
+def _joint_impulses(y, dt, m, T, fpos, fvel, el_u, el_inv_len, el_inv_mass, el_T, el_arm, o_part, o_vel):
+    """One Gauss-Seidel sweep of the joints' implicit bending impulses (``dissipate``).
+
+    ``el_inv_len`` and ``el_inv_mass`` (linear and bending inverse mass of
+    end a, then of end b) come from ``dissipate``'s geometry pass.
+    """
     joint_a, joint_b, joint_seg = m.joint_a, m.joint_b, m.joint_seg
     seg_bend_c, seg_link_mu, seg_link_r = m.seg_bend_c, m.seg_link_mu, m.seg_link_r
     el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m.el_ka, m.el_ia, m.el_ra, m.el_kb, m.el_ib, m.el_rb
-    part_seg, seg_npart, seg_rho = m.part_seg, m.seg_npart, m.seg_rho
-    body_mass, body_I, body_Iinv = m.body_mass, m.body_I, m.body_Iinv
+    body_I, body_Iinv = m.body_I, m.body_Iinv
     for j in range(joint_b.shape[0]):
         s = joint_seg[j]
         c = seg_bend_c[s]
@@ -541,28 +573,25 @@ def _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o
         _, _, _, vxa, vya, vza, _, _, _ = _node(el_ka[e2], el_ia[e2], el_ra, e2, y, T, fpos, fvel, o_part, o_vel)
         _, _, _, vxb, vyb, vzb, _, _, _ = _node(el_kb[e2], el_ib[e2], el_rb, e2, y, T, fpos, fvel, o_part, o_vel)
         u2x, u2y, u2z = el_u[e2, 0], el_u[e2, 1], el_u[e2, 2]
-        L2 = el_len[e2]
-        w2x = (u2y * (vzb - vza) - u2z * (vyb - vya)) / L2
-        w2y = (u2z * (vxb - vxa) - u2x * (vzb - vza)) / L2
-        w2z = (u2x * (vyb - vya) - u2y * (vxb - vxa)) / L2
-        w = (_inverse_mass(el_ka[e2], el_ia[e2], el_arm[e2, 0], el_arm[e2, 1], el_arm[e2, 2], part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg)
-             + _inverse_mass(el_kb[e2], el_ib[e2], el_arm[e2, 3], el_arm[e2, 4], el_arm[e2, 5], part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg)) / (L2 * L2)
+        i2 = el_inv_len[e2]
+        w2x = (u2y * (vzb - vza) - u2z * (vyb - vya)) * i2
+        w2y = (u2z * (vxb - vxa) - u2x * (vzb - vza)) * i2
+        w2z = (u2x * (vyb - vya) - u2y * (vxb - vxa)) * i2
+        w = (el_inv_mass[e2, 1] + el_inv_mass[e2, 3]) * i2 * i2
         b = 0
-        L1 = 1.0
+        i1 = 1.0
         u1x, u1y, u1z = 0.0, 0.0, 0.0
         if e1 >= 0:
             _, _, _, vxa, vya, vza, _, _, _ = _node(el_ka[e1], el_ia[e1], el_ra, e1, y, T, fpos, fvel, o_part, o_vel)
             _, _, _, vxb, vyb, vzb, _, _, _ = _node(el_kb[e1], el_ib[e1], el_rb, e1, y, T, fpos, fvel, o_part, o_vel)
             u1x, u1y, u1z = el_u[e1, 0], el_u[e1, 1], el_u[e1, 2]
-            L1 = el_len[e1]
-            w1x = (u1y * (vzb - vza) - u1z * (vyb - vya)) / L1
-            w1y = (u1z * (vxb - vxa) - u1x * (vzb - vza)) / L1
-            w1z = (u1x * (vyb - vya) - u1y * (vxb - vxa)) / L1
-            w += (_inverse_mass(el_ka[e1], el_ia[e1], el_arm[e1, 0], el_arm[e1, 1], el_arm[e1, 2], part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg)
-                  + _inverse_mass(el_kb[e1], el_ib[e1], el_arm[e1, 3], el_arm[e1, 4], el_arm[e1, 5], part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg)) / (L1 * L1)
-            # the shared particle takes both couples: cross term 2 (u1 . u2) / (m_p L1 L2)
-            inv_p = _inverse_mass(el_ka[e2], el_ia[e2], 0.0, 0.0, 0.0, part_seg, seg_npart, seg_rho, body_mass, body_I, Lseg)
-            w += 2.0 * (u1x * u2x + u1y * u2y + u1z * u2z) * inv_p / (L1 * L2)
+            i1 = el_inv_len[e1]
+            w1x = (u1y * (vzb - vza) - u1z * (vyb - vya)) * i1
+            w1y = (u1z * (vxb - vxa) - u1x * (vzb - vza)) * i1
+            w1z = (u1x * (vyb - vya) - u1y * (vxb - vxa)) * i1
+            # the shared node (end a of e2) takes both couples: cross term 2 (u1 . u2) / (m_p L1 L2)
+            w += ((el_inv_mass[e1, 1] + el_inv_mass[e1, 3]) * i1 * i1
+                  + 2.0 * (u1x * u2x + u1y * u2y + u1z * u2z) * el_inv_mass[e2, 0] * i1 * i2)
             tension = 0.5 * (el_T[e1] + el_T[e2])
         else:
             b = -e1 - 1
@@ -585,17 +614,17 @@ def _joint_impulses(y, dt, m, T, Lseg, fpos, fvel, el_u, el_len, el_T, el_arm, o
                 f = min(speed / w, mu * seg_link_r[s] * tension * dt) / speed
                 hx, hy, hz = hx - f * rx, hy - f * ry, hz - f * rz
         # the angular impulse on e2 as the linear couple (H x u2) / L2 at its ends
-        jx = (hy * u2z - hz * u2y) / L2
-        jy = (hz * u2x - hx * u2z) / L2
-        jz = (hx * u2y - hy * u2x) / L2
-        _kick(el_kb[e2], el_ib[e2], el_arm[e2, 3], el_arm[e2, 4], el_arm[e2, 5], jx, jy, jz, y, part_seg, seg_npart, seg_rho, body_mass, body_Iinv, T, Lseg, o_vel)
-        _kick(el_ka[e2], el_ia[e2], el_arm[e2, 0], el_arm[e2, 1], el_arm[e2, 2], -jx, -jy, -jz, y, part_seg, seg_npart, seg_rho, body_mass, body_Iinv, T, Lseg, o_vel)
+        jx = (hy * u2z - hz * u2y) * i2
+        jy = (hz * u2x - hx * u2z) * i2
+        jz = (hx * u2y - hy * u2x) * i2
+        _kick(el_kb[e2], el_ib[e2], el_arm[e2, 3], el_arm[e2, 4], el_arm[e2, 5], jx, jy, jz, el_inv_mass[e2, 2], y, body_Iinv, T, o_vel)
+        _kick(el_ka[e2], el_ia[e2], el_arm[e2, 0], el_arm[e2, 1], el_arm[e2, 2], -jx, -jy, -jz, el_inv_mass[e2, 0], y, body_Iinv, T, o_vel)
         if e1 >= 0:
-            jx = -(hy * u1z - hz * u1y) / L1
-            jy = -(hz * u1x - hx * u1z) / L1
-            jz = -(hx * u1y - hy * u1x) / L1
-            _kick(el_kb[e1], el_ib[e1], el_arm[e1, 3], el_arm[e1, 4], el_arm[e1, 5], jx, jy, jz, y, part_seg, seg_npart, seg_rho, body_mass, body_Iinv, T, Lseg, o_vel)
-            _kick(el_ka[e1], el_ia[e1], el_arm[e1, 0], el_arm[e1, 1], el_arm[e1, 2], -jx, -jy, -jz, y, part_seg, seg_npart, seg_rho, body_mass, body_Iinv, T, Lseg, o_vel)
+            jx = -(hy * u1z - hz * u1y) * i1
+            jy = -(hz * u1x - hx * u1z) * i1
+            jz = -(hx * u1y - hy * u1x) * i1
+            _kick(el_kb[e1], el_ib[e1], el_arm[e1, 3], el_arm[e1, 4], el_arm[e1, 5], jx, jy, jz, el_inv_mass[e1, 2], y, body_Iinv, T, o_vel)
+            _kick(el_ka[e1], el_ia[e1], el_arm[e1, 0], el_arm[e1, 1], el_arm[e1, 2], -jx, -jy, -jz, el_inv_mass[e1, 0], y, body_Iinv, T, o_vel)
         else:
             _turn(b, -hx, -hy, -hz, y, body_Iinv, T)
 
@@ -612,6 +641,7 @@ Work = namedtuple("Work", [
     "trig",  # (nb, 4) per body: sin, cos of roll and yaw
     "inv_mass_seg",  # (S,) 1 / particle mass per segment
     "el_u", "el_len", "el_T", "el_arm",  # dissipate: element unit vectors, lengths, tensions, lever arms
+    "el_inv_len", "el_inv_mass",  # dissipate: 1 / length; per end (a, b) the linear and bending inverse mass
     "eps", "seg_decay", "seg_gain", "step",  # Verlet (rhs_maxwell_update): stretch ratios, per-segment factors, their h
     "slack_changes",  # (1,) elements that turned slack or taut since it was zeroed (rhs_maxwell_update)
 ])
@@ -630,7 +660,7 @@ def make_work(m):
                 reel_rate=np.zeros(nreel), fb=np.zeros((nb, 3)), mb=np.zeros((nb, 3)), fp=np.zeros((max(P, 1), 3)),
                 sumA=np.zeros(max(R, 1)), sumB=np.zeros(max(R, 1)), fpos=np.zeros((F, 3)), fvel=np.zeros((F, 3)),
                 trig=np.zeros((max(nb, 1), 4)), inv_mass_seg=np.zeros(S), el_u=np.zeros((E, 3)), el_len=np.zeros(E),
-                el_T=np.zeros(E), el_arm=np.zeros((E, 6)), eps=np.zeros(E), seg_decay=np.zeros(S),
+                el_T=np.zeros(E), el_arm=np.zeros((E, 6)), el_inv_len=np.zeros(E), el_inv_mass=np.zeros((E, 4)), eps=np.zeros(E), seg_decay=np.zeros(S),
                 seg_gain=np.zeros(S), step=np.zeros(1), slack_changes=np.zeros(1))
 
 
