@@ -11,7 +11,7 @@ recording: on a realistic recording with no added
 physics (truth rig drawn within tolerances, simulated finer than the
 model), rope bending damping at c = 0.0014 N m s/rad cut the spreader
 bar's and hoist cluster's pitch residual by 2-5 % and left the bucket
-untouched, 1.3 times the noise threshold (docs/diagnosis.md). A share
+untouched, 1.3 times the threshold (docs/diagnosis.md). A share
 would not do: chain-link friction's own signature is two-thirds above
 5 Hz (it acts at the chains' joints), but it is strong below it too.
 
