@@ -746,6 +746,10 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
             rms_ch[ch] = {"before": float(np.sqrt(np.nanmean(before**2))),
                           "after": float(np.sqrt(np.nanmean(after**2)))}
         n_w = problem.n_weighted
+        # Evidence only where the model does not resolve the motion is not
+        # evidence (``_band``).
+        beyond = bool(s["improvement"] > threshold and value > 0)
+        resolved_ok = band["resolved"] >= RESOLVED_MIN * threshold
         hypotheses.append({
             "name": c["name"],
             "main_parameter": main,
@@ -758,12 +762,8 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
             "improvement": s["improvement"],
             "threshold": threshold,
             "score": s["improvement"] / threshold,
-            # Evidence only where the model does not resolve the motion is
-            # not evidence (``_band``).
-            "significant": bool(s["improvement"] > threshold and value > 0
-                                and band["resolved"] >= RESOLVED_MIN * threshold),
-            "unresolved": bool(s["improvement"] > threshold and value > 0
-                               and band["resolved"] < RESOLVED_MIN * threshold),
+            "significant": beyond and resolved_ok,
+            "unresolved": beyond and not resolved_ok,
             "resolved_share": band["resolved_share"],
             "resolved_improvement": band["resolved"],
             "signature_match": sig_match,
