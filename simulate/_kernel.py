@@ -71,7 +71,7 @@ def _body_matrix(roll, pitch, yaw, T, b):
     return sf, cf, ss, cs
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _reel_lengths(t, reel_t, reel_len, out_len, out_rate):
     """Linear interpolation of the reel table, held constant outside it."""
     n = reel_t.shape[0]
@@ -94,7 +94,7 @@ def _reel_lengths(t, reel_t, reel_len, out_len, out_rate):
         out_rate[j] = rate
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _fixed_points(t, point_t, point_pos, fpos, fvel):
     """Fixed points' positions and velocities at t (linear in time, held outside)."""
     n = point_t.shape[0]
@@ -116,7 +116,7 @@ def _fixed_points(t, point_t, point_pos, fpos, fvel):
             fvel[i, j] = (b - a) / dt
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _segment_lengths(t, seg_len0, seg_reel, seg_reel_off, reel_t, reel_len, Lseg, dLseg, reel_buf, reel_rate_buf):
     _reel_lengths(t, reel_t, reel_len, reel_buf, reel_rate_buf)
     for s in range(seg_len0.shape[0]):
@@ -160,19 +160,48 @@ def _node(kind, idx, arms, e, y, T, fpos, fvel, o_part, o_vel):
 
 
 @njit(cache=True, inline="always")
-def _push(kind, idx, a0, a1, a2, fx, fy, fz, fp, fb, mb):
-    """Add force f (N) at an element end: to a particle, or to a body with its moment."""
-    if kind == KIND_PARTICLE:
-        fp[idx, 0] += fx
-        fp[idx, 1] += fy
-        fp[idx, 2] += fz
-    elif kind == KIND_BODY:
-        fb[idx, 0] += fx
-        fb[idx, 1] += fy
-        fb[idx, 2] += fz
-        mb[idx, 0] += a1 * fz - a2 * fy
-        mb[idx, 1] += a2 * fx - a0 * fz
-        mb[idx, 2] += a0 * fy - a1 * fx
+def _gather_nodes(y, m, T, fpos, fvel, nx, nv, narm, o_part, o_vel, velocities):
+    """Every element end's position (m) into ``nx`` and, with ``velocities``, velocity (m/s) into ``nv``.
+
+    Rows follow ``_model._node_map``: particles, body ends (``narm`` gets
+    their inertial lever arms), fixed points. One pass here and the element
+    loops read both ends by index, with no branch on what an end is: the
+    per-end branches cost the right-hand side about three quarters of its
+    time (docs/model.md). A body end's arithmetic is ``_node``'s, operation
+    for operation, so results do not change.
+    """
+    P = m.part_seg.shape[0]
+    for i in range(P):
+        j = o_part + 3 * i
+        nx[i, 0], nx[i, 1], nx[i, 2] = y[j], y[j + 1], y[j + 2]
+    if velocities:
+        for i in range(P):
+            v = o_vel + 3 * i
+            nv[i, 0], nv[i, 1], nv[i, 2] = y[v], y[v + 1], y[v + 2]
+    bnode_body, bnode_arm = m.bnode_body, m.bnode_arm
+    NB = bnode_body.shape[0]
+    for k in range(NB):
+        idx = bnode_body[k]
+        b = 12 * idx
+        r0, r1, r2 = bnode_arm[k, 0], bnode_arm[k, 1], bnode_arm[k, 2]
+        a0 = T[idx, 0, 0] * r0 + T[idx, 0, 1] * r1 + T[idx, 0, 2] * r2
+        a1 = T[idx, 1, 0] * r0 + T[idx, 1, 1] * r1 + T[idx, 1, 2] * r2
+        a2 = T[idx, 2, 0] * r0 + T[idx, 2, 1] * r1 + T[idx, 2, 2] * r2
+        narm[k, 0], narm[k, 1], narm[k, 2] = a0, a1, a2
+        nx[P + k, 0], nx[P + k, 1], nx[P + k, 2] = y[b] + a0, y[b + 1] + a1, y[b + 2] + a2
+        if velocities:
+            p, q, rr = y[b + 9], y[b + 10], y[b + 11]
+            wx = q * r2 - rr * r1
+            wy = rr * r0 - p * r2
+            wz = p * r1 - q * r0
+            nv[P + k, 0] = y[b + 3] + T[idx, 0, 0] * wx + T[idx, 0, 1] * wy + T[idx, 0, 2] * wz
+            nv[P + k, 1] = y[b + 4] + T[idx, 1, 0] * wx + T[idx, 1, 1] * wy + T[idx, 1, 2] * wz
+            nv[P + k, 2] = y[b + 5] + T[idx, 2, 0] * wx + T[idx, 2, 1] * wy + T[idx, 2, 2] * wz
+    for f in range(m.point_pos.shape[1]):
+        for k in range(3):
+            nx[P + NB + f, k] = fpos[f, k]
+            if velocities:
+                nv[P + NB + f, k] = fvel[f, k]
 
 
 @njit(cache=True, inline="always")
@@ -219,12 +248,6 @@ def _rhs(t, y, dy, m, work, update):
     g = m.g
     part_seg = m.part_seg
     el_seg = m.el_seg
-    el_ka = m.el_ka
-    el_ia = m.el_ia
-    el_ra = m.el_ra
-    el_kb = m.el_kb
-    el_ib = m.el_ib
-    el_rb = m.el_rb
     seg_ks = m.seg_ks
     seg_kv = m.seg_kv
     seg_relax = m.seg_relax
@@ -256,28 +279,32 @@ def _rhs(t, y, dy, m, work, update):
     o_ring = o_F + E
 
     T, Lseg, dLseg, reel_buf, reel_rate = work.T, work.Lseg, work.dLseg, work.reel_buf, work.reel_rate
-    fb, mb, fp, sumA, sumB, fpos, fvel = work.fb, work.mb, work.fp, work.sumA, work.sumB, work.fpos, work.fvel
+    fb, mb, sumA, sumB, fpos, fvel = work.fb, work.mb, work.sumA, work.sumB, work.fpos, work.fvel
     trig, inv_mass_seg = work.trig, work.inv_mass_seg
+    nx, nv, narm, nf = work.nx, work.nv, work.narm, work.nf
+    el_na, el_nb, bnode_body = m.el_na, m.el_nb, m.bnode_body
 
     _fixed_points(t, reel_t, point_pos, fpos, fvel)
     for b in range(nb):
         trig[b, 0], trig[b, 1], trig[b, 2], trig[b, 3] = _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
     _segment_lengths(t, seg_len0, seg_reel, seg_reel_off, reel_t, reel_len, Lseg, dLseg, reel_buf, reel_rate)
+    _gather_nodes(y, m, T, fpos, fvel, nx, nv, narm, o_part, o_vel, True)
     fb[:, :] = 0.0
     mb[:, :] = 0.0
-    fp[:, :] = 0.0
+    nf[:, :] = 0.0
     sumA[:] = 0.0
     sumB[:] = 0.0
 
     el_side = m.el_side
     for e in range(E):
         s = el_seg[e]
+        side = el_side[e]
         Le, dLe = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
-        xa, ya, za, uxa, uya, uza, a0, a1, a2 = _node(el_ka[e], el_ia[e], el_ra, e, y, T, fpos, fvel, o_part, o_vel)
-        xb, yb, zb, uxb, uyb, uzb, b0, b1, b2 = _node(el_kb[e], el_ib[e], el_rb, e, y, T, fpos, fvel, o_part, o_vel)
-        dx = xb - xa
-        dyy = yb - ya
-        dz = zb - za
+        na = el_na[e]
+        nb_ = el_nb[e]
+        dx = nx[nb_, 0] - nx[na, 0]
+        dyy = nx[nb_, 1] - nx[na, 1]
+        dz = nx[nb_, 2] - nx[na, 2]
         length = np.sqrt(dx * dx + dyy * dyy + dz * dz)
         if update:
             # F_m' = Kv eps' - lambda F_m, eps' constant over the step; from eps = 1 if it was slack
@@ -294,7 +321,7 @@ def _rhs(t, y, dy, m, work, update):
         if length > Le:
             inv = 1.0 / length
             ux, uy, uz = dx * inv, dyy * inv, dz * inv
-            rate = ux * (uxb - uxa) + uy * (uyb - uya) + uz * (uzb - uza)
+            rate = ux * (nv[nb_, 0] - nv[na, 0]) + uy * (nv[nb_, 1] - nv[na, 1]) + uz * (nv[nb_, 2] - nv[na, 2])
             invL = 1.0 / Le
             dy[o_F + e] = seg_kv[s] * invL * (rate - length * dLe * invL) - seg_relax[s] * Fm
             tension = seg_ks[s] * invL * (length - Le) + Fm
@@ -302,22 +329,39 @@ def _rhs(t, y, dy, m, work, update):
                 tension = 0.0
         else:
             dy[o_F + e] = 0.0  # slack: F_m is held at zero by ``project``
-        if el_side[e] == 1:
+        if side == 1:
             sumA[seg_ring[s]] += tension + tension * tension / (2.0 * (seg_ks[s] + seg_kv[s]))
-        elif el_side[e] == 2:
+        elif side == 2:
             sumB[seg_ring[s]] += tension + tension * tension / (2.0 * (seg_ks[s] + seg_kv[s]))
         if tension == 0.0:
             continue
         fx, fy, fz = tension * ux, tension * uy, tension * uz
-        _push(el_ka[e], el_ia[e], a0, a1, a2, fx, fy, fz, fp, fb, mb)
-        _push(el_kb[e], el_ib[e], b0, b1, b2, -fx, -fy, -fz, fp, fb, mb)
+        nf[na, 0] += fx
+        nf[na, 1] += fy
+        nf[na, 2] += fz
+        nf[nb_, 0] -= fx
+        nf[nb_, 1] -= fy
+        nf[nb_, 2] -= fz
+
+    # each body end's force on its body, with its moment, in element order (as summed before the node map)
+    for k in range(bnode_body.shape[0]):
+        b = bnode_body[k]
+        fx, fy, fz = nf[P + k, 0], nf[P + k, 1], nf[P + k, 2]
+        a0, a1, a2 = narm[k, 0], narm[k, 1], narm[k, 2]
+        fb[b, 0] += fx
+        fb[b, 1] += fy
+        fb[b, 2] += fz
+        mb[b, 0] += a1 * fz - a2 * fy
+        mb[b, 1] += a2 * fx - a0 * fz
+        mb[b, 2] += a0 * fy - a1 * fx
 
     # particles: lumped mass from the segment's current unstretched length
     for s in range(seg_rho.shape[0]):
         inv_mass_seg[s] = seg_npart[s] / (seg_rho[s] * Lseg[s])
+    part_accel_scale = m.part_accel_scale
     for i in range(P):
         s = part_seg[i]
-        inv_mass = inv_mass_seg[s]
+        inv_mass = inv_mass_seg[s] * part_accel_scale[i]
         cda = seg_cda[s] * Lseg[s] / seg_npart[s]
         vx = y[o_vel + 3 * i]
         vy = y[o_vel + 3 * i + 1]
@@ -328,8 +372,8 @@ def _rhs(t, y, dy, m, work, update):
         for k in range(3):
             v = y[o_vel + 3 * i + k]
             dy[o_part + 3 * i + k] = v
-            dy[o_vel + 3 * i + k] = (fp[i, k] - drag * v) * inv_mass - relax_damping * v
-        dy[o_vel + 3 * i + 2] += g
+            dy[o_vel + 3 * i + k] = (nf[i, k] - drag * v) * inv_mass - relax_damping * v
+        dy[o_vel + 3 * i + 2] += g * part_accel_scale[i]
 
     for b in range(nb):
         o = 12 * b
@@ -338,11 +382,12 @@ def _rhs(t, y, dy, m, work, update):
         drag = 0.0
         if body_cda[b] > 0.0:
             drag = 0.5 * air_density * body_cda[b] * np.sqrt(vx * vx + vy * vy + vz * vz)
+        scale = m.body_accel_scale[b]
         for k in range(3):
             v = y[o + 3 + k]
             dy[o + k] = v
-            dy[o + 3 + k] = (fb[b, k] - drag * v) / mass - relax_damping * v
-        dy[o + 5] += g
+            dy[o + 3 + k] = (fb[b, k] - drag * v) / mass * scale - relax_damping * v
+        dy[o + 5] += g * scale
         p, q, r = y[o + 9], y[o + 10], y[o + 11]
         sf, cf, ss, cs = trig[b, 0], trig[b, 1], trig[b, 2], trig[b, 3]
         pitch_rate = (p * ss + q * cs) / cf  # Eq. 3
@@ -359,9 +404,9 @@ def _rhs(t, y, dy, m, work, update):
         gx = Mx - (q * hz - r * hy)
         gy = My - (r * hx - p * hz)
         gz = Mz - (p * hy - q * hx)
-        dy[o + 9] = body_Iinv[b, 0, 0] * gx + body_Iinv[b, 0, 1] * gy + body_Iinv[b, 0, 2] * gz - relax_damping * p
-        dy[o + 10] = body_Iinv[b, 1, 0] * gx + body_Iinv[b, 1, 1] * gy + body_Iinv[b, 1, 2] * gz - relax_damping * q
-        dy[o + 11] = body_Iinv[b, 2, 0] * gx + body_Iinv[b, 2, 1] * gy + body_Iinv[b, 2, 2] * gz - relax_damping * r
+        dy[o + 9] = (body_Iinv[b, 0, 0] * gx + body_Iinv[b, 0, 1] * gy + body_Iinv[b, 0, 2] * gz) * scale - relax_damping * p
+        dy[o + 10] = (body_Iinv[b, 1, 0] * gx + body_Iinv[b, 1, 1] * gy + body_Iinv[b, 1, 2] * gz) * scale - relax_damping * q
+        dy[o + 11] = (body_Iinv[b, 2, 0] * gx + body_Iinv[b, 2, 1] * gy + body_Iinv[b, 2, 2] * gz) * scale - relax_damping * r
 
     for rg in range(R):
         s = ring_seg[rg]
@@ -393,17 +438,18 @@ def project(t, y, m, work):
     for b in range(nb):
         _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
     _segment_lengths(t, m.seg_len0, m.seg_reel, m.seg_reel_off, m.reel_t, m.reel_len, Lseg, dLseg, reel_buf, reel_rate)
-    el_seg, el_side, el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m.el_seg, m.el_side, m.el_ka, m.el_ia, m.el_ra, m.el_kb, m.el_ib, m.el_rb
+    nx = work.nx
+    _gather_nodes(y, m, T, fpos, fvel, nx, work.nv, work.narm, o_part, o_vel, False)
+    el_seg, el_side, el_na, el_nb = m.el_seg, m.el_side, m.el_na, m.el_nb
     seg_ring, seg_nel, seg_nelA = m.seg_ring, m.seg_nel, m.seg_nelA
     for e in range(E):
         if y[o_F + e] == 0.0:
             continue
         Le, _ = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
-        xa, ya, za, _, _, _, _, _, _ = _node(el_ka[e], el_ia[e], el_ra, e, y, T, fpos, fvel, o_part, o_vel)
-        xb, yb, zb, _, _, _, _, _, _ = _node(el_kb[e], el_ib[e], el_rb, e, y, T, fpos, fvel, o_part, o_vel)
-        dx = xb - xa
-        dyy = yb - ya
-        dz = zb - za
+        na, nb_ = el_na[e], el_nb[e]
+        dx = nx[nb_, 0] - nx[na, 0]
+        dyy = nx[nb_, 1] - nx[na, 1]
+        dz = nx[nb_, 2] - nx[na, 2]
         if dx * dx + dyy * dyy + dz * dz <= Le * Le:
             y[o_F + e] = 0.0
 
@@ -436,28 +482,33 @@ def dissipate(t, y, dt, m, work):
     o_part, o_vel, o_F, o_ring = _offsets(m)
     T, Lseg, dLseg, reel_buf, reel_rate, fpos, fvel = work.T, work.Lseg, work.dLseg, work.reel_buf, work.reel_rate, work.fpos, work.fvel
     el_u, el_len, el_T, el_arm = work.el_u, work.el_len, work.el_T, work.el_arm
-    el_seg, el_side, el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m.el_seg, m.el_side, m.el_ka, m.el_ia, m.el_ra, m.el_kb, m.el_ib, m.el_rb
+    el_seg, el_side = m.el_seg, m.el_side
     seg_ks, seg_ring, seg_nel, seg_nelA, seg_rho = m.seg_ks, m.seg_ring, m.seg_nel, m.seg_nelA, m.seg_rho
     _fixed_points(t, m.reel_t, m.point_pos, fpos, fvel)
     for b in range(nb):
         _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
     _segment_lengths(t, m.seg_len0, m.seg_reel, m.seg_reel_off, m.reel_t, m.reel_len, Lseg, dLseg, reel_buf, reel_rate)
+    nx, narm, el_na, el_nb = work.nx, work.narm, m.el_na, m.el_nb
+    _gather_nodes(y, m, T, fpos, fvel, nx, work.nv, narm, o_part, o_vel, False)
+    P = m.part_seg.shape[0]
+    body_end = P + m.bnode_body.shape[0]  # nodes P .. body_end - 1 are body ends
     for e in range(E):
         se = el_seg[e]
         rg = seg_ring[se]
         if m.seg_bend_c[se] == 0.0 and m.seg_link_mu[se] == 0.0 and not (rg >= 0 and m.ring_mu[rg] > 0.0):
             continue  # no mechanism acts on this segment
         Le, _ = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
-        xa, ya, za, _, _, _, a0, a1, a2 = _node(el_ka[e], el_ia[e], el_ra, e, y, T, fpos, fvel, o_part, o_vel)
-        xb, yb, zb, _, _, _, b0, b1, b2 = _node(el_kb[e], el_ib[e], el_rb, e, y, T, fpos, fvel, o_part, o_vel)
-        dx, dyy, dz = xb - xa, yb - ya, zb - za
+        na, nb_ = el_na[e], el_nb[e]
+        dx, dyy, dz = nx[nb_, 0] - nx[na, 0], nx[nb_, 1] - nx[na, 1], nx[nb_, 2] - nx[na, 2]
         length = np.sqrt(dx * dx + dyy * dyy + dz * dz)
         el_len[e] = length
         el_u[e, 0], el_u[e, 1], el_u[e, 2] = dx / length, dyy / length, dz / length
         tension = seg_ks[el_seg[e]] / Le * (length - Le) + y[o_F + e] if length > Le else 0.0
         el_T[e] = max(tension, 0.0)
-        el_arm[e, 0], el_arm[e, 1], el_arm[e, 2] = a0, a1, a2
-        el_arm[e, 3], el_arm[e, 4], el_arm[e, 5] = b0, b1, b2
+        for end in range(2):
+            node = na if end == 0 else nb_
+            for k in range(3):
+                el_arm[e, 3 * end + k] = narm[node - P, k] if P <= node < body_end else 0.0
     if has_joints:
         _joint_geometry(m, Lseg, el_len, el_arm, work.el_inv_len, work.el_inv_mass)
         _joint_impulses(y, dt, m, T, fpos, fvel, el_u, work.el_inv_len, work.el_inv_mass, el_T, el_arm, o_part, o_vel)
@@ -635,13 +686,14 @@ Work = namedtuple("Work", [
     "Lseg", "dLseg",  # (S,) unstretched segment lengths (m) and their rates (m/s)
     "reel_buf", "reel_rate",  # (reels,) reel lengths and rates
     "fb", "mb",  # (nb, 3) force (N) and moment (N m) on each body, inertial axes
-    "fp",  # (P, 3) force on each particle (N)
     "sumA", "sumB",  # (R,) tension sums over each ring's sides
     "fpos", "fvel",  # (F, 3) fixed points' positions and velocities
     "trig",  # (nb, 4) per body: sin, cos of roll and yaw
     "inv_mass_seg",  # (S,) 1 / particle mass per segment
     "el_u", "el_len", "el_T", "el_arm",  # dissipate: element unit vectors, lengths, tensions, lever arms
     "el_inv_len", "el_inv_mass",  # dissipate: 1 / length; per end (a, b) the linear and bending inverse mass
+    "nx", "nv", "nf",  # (nodes, 3) element ends' positions (m), velocities (m/s), forces (N): _model._node_map
+    "narm",  # (body ends, 3) body ends' lever arms (m, inertial axes)
     "eps", "seg_decay", "seg_gain", "step",  # Verlet (rhs_maxwell_update): stretch ratios, per-segment factors, their h
     "slack_changes",  # (1,) elements that turned slack or taut since it was zeroed (rhs_maxwell_update)
 ])
@@ -656,12 +708,15 @@ def make_work(m):
     E = m.el_seg.shape[0]
     F = max(m.point_pos.shape[1], 1)
     nreel = m.reel_len.shape[1]
+    nodes = max(P + m.bnode_body.shape[0] + m.point_pos.shape[1], 1)
     return Work(T=np.zeros((nb, 3, 3)), Lseg=np.zeros(S), dLseg=np.zeros(S), reel_buf=np.zeros(nreel),
-                reel_rate=np.zeros(nreel), fb=np.zeros((nb, 3)), mb=np.zeros((nb, 3)), fp=np.zeros((max(P, 1), 3)),
+                reel_rate=np.zeros(nreel), fb=np.zeros((nb, 3)), mb=np.zeros((nb, 3)),
                 sumA=np.zeros(max(R, 1)), sumB=np.zeros(max(R, 1)), fpos=np.zeros((F, 3)), fvel=np.zeros((F, 3)),
                 trig=np.zeros((max(nb, 1), 4)), inv_mass_seg=np.zeros(S), el_u=np.zeros((E, 3)), el_len=np.zeros(E),
                 el_T=np.zeros(E), el_arm=np.zeros((E, 6)), el_inv_len=np.zeros(E), el_inv_mass=np.zeros((E, 4)), eps=np.zeros(E), seg_decay=np.zeros(S),
-                seg_gain=np.zeros(S), step=np.zeros(1), slack_changes=np.zeros(1))
+                seg_gain=np.zeros(S), step=np.zeros(1), slack_changes=np.zeros(1),
+                nx=np.zeros((nodes, 3)), nv=np.zeros((nodes, 3)), nf=np.zeros((nodes, 3)),
+                narm=np.zeros((max(m.bnode_body.shape[0], 1), 3)))
 
 
 @njit(cache=True, inline="always")

@@ -177,6 +177,8 @@ KERNEL_FIELDS = (
     "has_joints", "joint_a", "joint_b", "joint_seg", "seg_bend_c", "seg_link_mu",
     "ring_eA", "ring_eB", "ring_mu", "has_ring_friction", "seg_link_r",
     "ring_visc",
+    "el_na", "el_nb", "bnode_body", "bnode_arm",
+    "part_accel_scale", "body_accel_scale",
 )  # fmt: skip
 
 # The kernel reads the model by name; numba compiles a namedtuple of arrays like a plain tuple
@@ -338,6 +340,9 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         "reel_len": np.column_stack([maneuver.hoist_length, maneuver.drag_length]).astype(float),
         "point_pos": _point_table(rig, maneuver, fixed_names),
         "relax_damping": 0.0,
+        # The statics' relaxation scales accelerations down (fictitious masses, _statics); 1 in a simulation.
+        "part_accel_scale": np.ones(len(part_seg)),
+        "body_accel_scale": np.ones(len(bodies)),
         "body_cda": np.zeros(len(bodies)),
         "seg_cda": np.zeros(len(seg_names)),
         "air_density": 1.2,
@@ -354,6 +359,7 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         "seg_link_r": np.zeros(len(seg_names)),
         "ring_visc": np.zeros(len(ring_seg)),
     }
+    arrays.update(_node_map(arrays))
     model = Model(
         rig=rig,
         maneuver=maneuver,
@@ -372,6 +378,34 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
     arrays["has_joints"] = int(np.any(arrays["seg_bend_c"] > 0) or np.any(arrays["seg_link_mu"] > 0))
     arrays["has_ring_friction"] = int(np.any(arrays["ring_mu"] > 0))
     return model
+
+
+def _node_map(arrays):
+    """Where each element end's position is gathered in the kernel (``_kernel._gather_nodes``).
+
+    Nodes are the particles (0..P-1), then one node per element end on a
+    body, in element order, end a before end b (the order the body forces
+    were always summed in, so the sums are the same to the last bit), then
+    the fixed points. ``el_na`` / ``el_nb``: the node of each element's end
+    a / b; ``bnode_body`` and ``bnode_arm``: each body node's body and lever
+    arm (m, body frame, from the mass centre).
+    """
+    P = arrays["part_seg"].shape[0]
+    E = arrays["el_seg"].shape[0]
+    body_ends = [(e, end) for e in range(E) for end in "ab" if arrays[f"el_k{end}"][e] == KIND_BODY]
+    first_fixed = P + len(body_ends)
+    node = {(e, end): P + k for k, (e, end) in enumerate(body_ends)}
+    ends = {}
+    for end in "ab":
+        kind, idx = arrays[f"el_k{end}"], arrays[f"el_i{end}"]
+        ends[end] = np.array([idx[e] if kind[e] == KIND_PARTICLE else node[(e, end)] if kind[e] == KIND_BODY
+                              else first_fixed + idx[e] for e in range(E)], np.int64)
+    return {
+        "el_na": ends["a"],
+        "el_nb": ends["b"],
+        "bnode_body": np.array([arrays[f"el_i{end}"][e] for e, end in body_ends], np.int64),
+        "bnode_arm": np.array([arrays[f"el_r{end}"][e] for e, end in body_ends], float).reshape(-1, 3),
+    }
 
 
 def _joints(seg_nodes, seg_elements, seg_names):

@@ -30,7 +30,7 @@ from ._kernel import (
 )
 from ._verlet import verlet_scratch, verlet_step
 
-__all__ = ["gershgorin_lambda", "state_gershgorin_lambda", "integrate_tracked", "RK4", "VERLET"]
+__all__ = ["gershgorin_lambda", "gershgorin_rows", "state_gershgorin_lambda", "integrate_tracked", "RK4", "VERLET"]
 
 # Integrators ``integrate_tracked`` runs (``_verlet`` says why there are two).
 RK4 = 0
@@ -46,13 +46,15 @@ MIN_STEP_RATIO = 1e-3
 
 
 @njit(cache=True)
-def gershgorin_lambda(rest, L, m):
-    """Gershgorin bound on the largest eigenvalue of M^-1 K (rad^2/s^2).
+def gershgorin_rows(rest, L, m):
+    """Gershgorin bounds (rad^2/s^2) on the eigenvalues of M^-1 K, row by row.
 
-    Row by row: particles and body translation (2 sum k / m), body rotation
-    about each body axis i (2 sum k (|r|^2 - r_i^2) / I_ii) and each ring's
-    slide (2 (K / side_A + K / side_B) / m_slide), with the instantaneous
-    stiffness (Ks + Kv) / rest of every element.
+    Particles and body translation (2 sum k / m), body rotation about each
+    body axis i (2 sum k (|r|^2 - r_i^2) / I_ii) and each ring's slide
+    (2 (K / side_A + K / side_B) / m_slide), with the instantaneous
+    stiffness (Ks + Kv) / rest of every element. Accelerations scaled by
+    the model (``part_accel_scale``, ``body_accel_scale``: the statics'
+    fictitious masses) scale their rows.
 
     Parameters
     ----------
@@ -62,6 +64,15 @@ def gershgorin_lambda(rest, L, m):
         Segment lengths (m): they set the particle masses.
     m : tuple
         The model's kernel tuple.
+
+    Returns
+    -------
+    particles : ndarray (P,)
+    bodies : ndarray (nb,)
+        Translation.
+    spins : ndarray (nb, 3)
+        Rotation about each body axis.
+    rings : ndarray (R,)
     """
     nb, body_mass, body_I = m.nb, m.body_mass, m.body_I
     part_seg, el_seg, el_side = m.part_seg, m.el_seg, m.el_side
@@ -92,19 +103,38 @@ def gershgorin_lambda(rest, L, m):
                 k_rot[idx, 0] += k * (r1 * r1 + r2 * r2)
                 k_rot[idx, 1] += k * (r0 * r0 + r2 * r2)
                 k_rot[idx, 2] += k * (r0 * r0 + r1 * r1)
-    lam = 0.0
+    particles = np.empty(P)
     for p in range(P):
         s = part_seg[p]
-        lam = max(lam, 2.0 * k_part[p] / (seg_rho[s] * L[s] / seg_npart[s]))
+        particles[p] = 2.0 * k_part[p] / (seg_rho[s] * L[s] / seg_npart[s]) * m.part_accel_scale[p]
+    bodies = np.empty(nb)
+    spins = np.empty((nb, 3))
     for b in range(nb):
-        lam = max(lam, 2.0 * k_body[b] / body_mass[b])
+        bodies[b] = 2.0 * k_body[b] / body_mass[b] * m.body_accel_scale[b]
         for i in range(3):
-            lam = max(lam, 2.0 * k_rot[b, i] / body_I[b, i, i])
+            spins[b, i] = 2.0 * k_rot[b, i] / body_I[b, i, i] * m.body_accel_scale[b]
+    rings = np.empty(R)
     for r in range(R):
         s = ring_seg[r]
         K = seg_ks[s] + seg_kv[s]
         m_slide = seg_rho[s] * L[s] / 3.0 + ring_added_mass[r]
-        lam = max(lam, 2.0 * (K / side_len[r, 0] + K / side_len[r, 1]) / m_slide)
+        rings[r] = 2.0 * (K / side_len[r, 0] + K / side_len[r, 1]) / m_slide
+    return particles, bodies, spins, rings
+
+
+@njit(cache=True)
+def gershgorin_lambda(rest, L, m):
+    """Gershgorin bound on the largest eigenvalue of M^-1 K (rad^2/s^2): the largest of ``gershgorin_rows``."""
+    particles, bodies, spins, rings = gershgorin_rows(rest, L, m)
+    lam = 0.0
+    for x in particles:
+        lam = max(lam, x)
+    for x in bodies:
+        lam = max(lam, x)
+    for x in spins.ravel():
+        lam = max(lam, x)
+    for x in rings:
+        lam = max(lam, x)
     return lam
 
 

@@ -47,7 +47,7 @@ from ._kernel import (
     _body_matrix,
     _element_rest,
     _fixed_points,
-    _node,
+    _gather_nodes,
     _offsets,
     _segment_lengths,
     dissipate,
@@ -72,12 +72,13 @@ def element_stretch(t, y, m, work, eps):
         _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
     _segment_lengths(t, m.seg_len0, m.seg_reel, m.seg_reel_off, m.reel_t, m.reel_len, Lseg, dLseg,
                      work.reel_buf, work.reel_rate)
-    el_seg, el_side, el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m.el_seg, m.el_side, m.el_ka, m.el_ia, m.el_ra, m.el_kb, m.el_ib, m.el_rb
+    nx = work.nx
+    _gather_nodes(y, m, T, fpos, fvel, nx, work.nv, work.narm, o_part, o_vel, False)
+    el_seg, el_side, el_na, el_nb = m.el_seg, m.el_side, m.el_na, m.el_nb
     for e in range(el_seg.shape[0]):
         Le, _ = _element_rest(e, y, el_seg, el_side, m.seg_ring, m.seg_nel, m.seg_nelA, Lseg, dLseg, o_ring)
-        xa, ya, za, _, _, _, _, _, _ = _node(el_ka[e], el_ia[e], el_ra, e, y, T, fpos, fvel, o_part, o_vel)
-        xb, yb, zb, _, _, _, _, _, _ = _node(el_kb[e], el_ib[e], el_rb, e, y, T, fpos, fvel, o_part, o_vel)
-        dx, dyy, dz = xb - xa, yb - ya, zb - za
+        na, nb_ = el_na[e], el_nb[e]
+        dx, dyy, dz = nx[nb_, 0] - nx[na, 0], nx[nb_, 1] - nx[na, 1], nx[nb_, 2] - nx[na, 2]
         eps[e] = math.sqrt(dx * dx + dyy * dyy + dz * dz) / Le
 
 
@@ -163,3 +164,4 @@ def verlet_step(t, h, y, acc, y_eval, m, work):
     _kick(y, acc, half, nb, o_vel, o_F, o_ring, R)
     if m.has_joints != 0 or m.has_ring_friction != 0:
         dissipate(t + h, y, h, m, work)
+

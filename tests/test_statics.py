@@ -59,3 +59,31 @@ def test_builtin_rig_carries_the_papers_numbers(rig):
     order = ["drag_rope", "dump_rope", "hoist_rope", "left_drag_chain", "left_lower_hoist_chain", "left_upper_hoist_chain"]
     for level in ("low", "baseline", "medium", "high"):
         assert [rig.particle_counts(level)[r] for r in order] == paper["discretization"][level]
+
+
+def test_fictitious_masses_leave_the_rest_pose_and_lengthen_the_relaxation_step(rig):
+    # The relaxation's masses are free (simulate/_statics.py): scaling a
+    # part's accelerations scales its gravity with them, so the pose where
+    # the true accelerations vanish is where the scaled ones do. And the
+    # scaled rig's stiffest Gershgorin row must be its bodies' own.
+    from dragline.simulate import _kernel
+    from dragline.simulate._model import kernel_model
+    from dragline.simulate._statics import _fictitious_masses, _frozen, _gershgorin, initial_state
+
+    model = assemble(rig, Maneuver([0.0], [8.6], [4.2]))
+    rest = solve_statics(model).state
+    arrays = _frozen(model, 0.0)
+    scaled = _fictitious_masses(model, arrays, initial_state(model), 0.0)
+    assert scaled["part_accel_scale"].min() < 0.2 and scaled["body_accel_scale"].min() < 1.0
+    true_acc, scaled_acc = np.zeros(model.n_state), np.zeros(model.n_state)
+    for a, out in ((arrays, true_acc), (scaled, scaled_acc)):
+        m = kernel_model(a)
+        _kernel.rhs(0.0, rest, out, m, _kernel.make_work(m))
+    particles = slice(model.o_vel, model.o_force)
+    assert np.abs(true_acc[particles]).max() < 1e-3  # at rest: mm/s^2 from a 1e-6 N residual on grams
+    np.testing.assert_allclose(scaled_acc[particles], true_acc[particles] * np.repeat(scaled["part_accel_scale"], 3),
+                               rtol=1e-9, atol=1e-13)  # rounding of g against the rope forces
+    before = [r.max() for r in _gershgorin(model, kernel_model(arrays), initial_state(model), 0.0)]
+    after = [r.max() for r in _gershgorin(model, kernel_model(scaled), initial_state(model), 0.0)]
+    assert max(after) == pytest.approx(before[1], rel=1e-9)  # nothing stiffer left than the bodies' translation
+    assert max(before) / max(after) > 20  # the step (1 / sqrt) more than 4.5 times longer
