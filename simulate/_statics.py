@@ -30,10 +30,10 @@ from ._verlet import VERLET_IMAGINARY_LIMIT
 
 __all__ = ["Equilibrium", "StaticsError", "solve_statics"]
 
-# The relaxation's budget in Verlet steps (one right-hand side each): 60 s
-# of relaxing at the high level's step (0.14 ms with the fictitious masses)
-# needs 4.3e5; a rig without bodies, whose masses are not scaled, far more.
-# About a minute of computing, as the 5e6 RK4 steps it replaced.
+# The relaxation's budget in Verlet steps (one right-hand side each), of
+# the true masses: 60 s of relaxing at the high level's step (24 us) needs
+# 2.6e6 (with the fictitious masses, 0.14 ms: 4.3e5). About a minute of
+# computing, as the 5e6 RK4 steps it replaced.
 MAX_RELAX_STEPS = 2e7
 # The relaxation hands over to Newton once every speed is below the first of these (m/s); if Newton
 # fails from there, relaxing goes on to the next. Measured on the built-in rig (low to high): Newton
@@ -159,15 +159,17 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     relaxing = _fictitious_masses(model, arrays, y, t)
     relaxing["relax_damping"] = float(damping)
     m = kernel_model(relaxing)
-    stiffest = _largest_row(model, m, y, t)
-    dt = RELAX_SAFETY * VERLET_IMAGINARY_LIMIT / np.sqrt(stiffest) if stiffest > 0 else 1e-3
-    steps = np.ceil(max_relax_time) / dt if dt > 0 else np.inf  # a float first: 1 / dt may overflow
+    # Refused on the true masses: the fictitious ones would relax a rig whose motion no step can follow.
+    true_step = _relaxation_step(_largest_row(model, newton, y, t))
+    steps = np.ceil(max_relax_time) / true_step if true_step > 0 else np.inf  # a float first: 1 / dt may overflow
     if not steps <= MAX_RELAX_STEPS:
         raise StaticsError(f"no static equilibrium sought at the rope lengths of t = {t:g} s: the stiffest rope or "
-                           f"chain element there needs a {dt:.2g} s step, so relaxing could take "
+                           f"chain element there needs a {true_step:.2g} s step, so relaxing could take "
                            f"{steps:.2g} steps, more than the {MAX_RELAX_STEPS:.0e} "
                            "allowed (an element near zero length, a discretization far finer than 'high', or a "
                            "stiffness or mass far from what a rig has?)")
+    stiffest = _largest_row(model, m, y, t)
+    dt = _relaxation_step(stiffest)
     per = int(np.ceil(RELAX_CHECK_S / RELAX_SLICES / dt))  # steps per slice
     speed_index = np.r_[[12 * b + k for b in range(model.n_bodies) for k in (3, 4, 5)], np.arange(model.o_vel, model.o_force)].astype(int)
     chunks_left = int(np.ceil(max_relax_time / RELAX_CHECK_S))
@@ -212,6 +214,11 @@ def _gershgorin(model, m, y, t):
     """``gershgorin_rows`` of kernel model ``m`` at state y, the segments at their lengths of time t."""
     lengths = model.segment_lengths(np.array([float(t)])).min(axis=1)
     return gershgorin_rows(_shortest_rest_lengths(model, lengths, y), lengths, m)
+
+
+def _relaxation_step(stiffest):
+    """The relaxation's Verlet step (s) for the largest Gershgorin row ``stiffest`` (rad^2/s^2)."""
+    return RELAX_SAFETY * VERLET_IMAGINARY_LIMIT / np.sqrt(stiffest) if stiffest > 0 else 1e-3
 
 
 def _largest_row(model, m, y, t):

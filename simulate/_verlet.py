@@ -44,6 +44,7 @@ import numpy as np
 from numba import njit
 
 from ._kernel import (
+    NO_REFCOUNT,
     _body_matrix,
     _element_rest,
     _fixed_points,
@@ -127,7 +128,7 @@ def verlet_scratch(t, y, m, work):
     return acc, np.empty(n)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, **NO_REFCOUNT)
 def verlet_step(t, h, y, acc, y_eval, m, work):
     """One kick-drift-kick step of length h from (t, y), in place.
 
