@@ -76,11 +76,11 @@ def default_cases(quick=False, seed=0):
     cases. Seeds differ per case (cameras, wand path, every noise draw).
     """
     cases = []
-    for name in sorted(n for n in MECHANISMS if MECHANISMS[n].get("candidate", True)):
+    for name in sorted(n for n in MECHANISMS if MECHANISMS[n].candidate):
         entry = MECHANISMS[name]
         values = MAGNITUDES.get(name)
         if values is None:
-            lo, hi = entry["range"]
+            lo, hi = entry.range
             values = tuple(float(v) for v in np.geomspace(lo, hi, 4))
         if quick:
             values = (values[0], values[2])
@@ -131,7 +131,7 @@ def realistic_cases(seed=0, quick=False):
     without a mechanism.
     """
     cases = []
-    for name in sorted(n for n in MECHANISMS if MECHANISMS[n].get("candidate", True)):
+    for name in sorted(n for n in MECHANISMS if MECHANISMS[n].candidate):
         values = REALISTIC_MAGNITUDES[name]
         cases += [(name, float(v)) for v in (values[1:2] if quick else values)]
     cases += [(n, float(v)) for n, v in (OUT_OF_MENU[1::2] if quick else OUT_OF_MENU)]
@@ -161,7 +161,7 @@ def _truth_world(name, value, seed, effect=True):
     if effect and name == "material_damping":  # out of the menu: every rope's and chain's damping scaled
         coords = np.array([math.log(value) if p.field == "viscous_damping" else x for p, x in zip(params, coords)])
     elif effect and name is not None:
-        physics = [make_mechanism(name, **{MECHANISMS[name]["main"]: value})]
+        physics = [make_mechanism(name, **{MECHANISMS[name].main: value})]
     truth_rig, truth_maneuver = apply_parameters(rig, dig_maneuver(), params, coords)
     return truth_rig, truth_maneuver, TRUTH_DISCRETIZATION, physics, coords
 
@@ -204,7 +204,7 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False):
         without = None if name is None else simulate(*_truth_world(name, value, seed, effect=False)[:4],
                                                        duration=10.0, rate_hz=200.0)
     else:
-        physics = [] if name is None else [make_mechanism(name, **{MECHANISMS[name]["main"]: value})]
+        physics = [] if name is None else [make_mechanism(name, **{MECHANISMS[name].main: value})]
         result = simulate(physics=physics, duration=10.0, rate_hz=200.0)
         recorded_maneuver = result.model.maneuver
         without = None if name is None else simulate(duration=10.0, rate_hz=200.0)
@@ -227,7 +227,7 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False):
         shutil.rmtree(workdir if own else folder, ignore_errors=True)
     out.update(verdict=doc["verdict"], reason=doc["reason"], diagnosis_seconds=time.perf_counter() - t0,
                load_seconds=doc["timing"].get("load_seconds"), simulations=doc["timing"]["simulations"])
-    in_menu = name is None or (name in MECHANISMS and MECHANISMS[name].get("candidate", True))
+    in_menu = name is None or (name in MECHANISMS and MECHANISMS[name].candidate)
     # Out of the menu the right answers are "unexplained" and "none" (with
     # the update that names the changed parameter, for material damping).
     out["out_of_menu"] = not in_menu

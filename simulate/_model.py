@@ -181,8 +181,7 @@ KERNEL_FIELDS = (
     "part_accel_scale", "body_accel_scale",
 )  # fmt: skip
 
-# The kernel reads the model by name; numba compiles a namedtuple of arrays like a plain tuple
-# (the same machine code: docs/model.md gives the timing before and after).
+# The kernel reads the model by name; numba compiles a namedtuple of arrays like a plain tuple.
 KernelModel = namedtuple("KernelModel", KERNEL_FIELDS)
 
 

@@ -12,7 +12,7 @@ from dragline.simulate import MECHANISMS
 def test_case_magnitudes_sit_inside_the_range_and_off_the_fit_grid(table):
     # A truth at a bound or on a grid point is "found" exactly by construction.
     for name, values in table.items():
-        lo, hi = MECHANISMS[name]["range"]
+        lo, hi = MECHANISMS[name].range
         grid = [math.log(lo) + k * (math.log(hi) - math.log(lo)) / (N_GRID - 1) for k in range(N_GRID)]
         for v in values:
             assert lo < v < hi, (name, v)
@@ -24,7 +24,7 @@ def test_default_cases_hold_enough_no_physics_cases_with_distinct_seeds():
     n_none = sum(name is None for name, _, _ in cases)
     assert n_none / len(cases) >= 0.2
     assert len({seed for _, _, seed in cases}) == len(cases)
-    assert {name for name, _, _ in cases} - {None} == {n for n in MECHANISMS if MECHANISMS[n].get("candidate", True)}
+    assert {name for name, _, _ in cases} - {None} == {n for n in MECHANISMS if MECHANISMS[n].candidate}
 
 
 def test_realistic_cases_hold_no_mechanism_and_out_of_menu_shares():
@@ -35,7 +35,7 @@ def test_realistic_cases_hold_no_mechanism_and_out_of_menu_shares():
         names = [name for name, _, _, _ in cases]
         assert all(world == "realistic" for *_, world in cases)
         assert names.count(None) / len(cases) >= 0.2
-        out_of_menu = [n for n in names if n is not None and not (n in MECHANISMS and MECHANISMS[n].get("candidate", True))]
+        out_of_menu = [n for n in names if n is not None and not (n in MECHANISMS and MECHANISMS[n].candidate)]
         assert len(out_of_menu) / len(cases) >= 0.15
         assert "sheave_bearing_damping" in out_of_menu  # a mechanism the simulator has, kept off the menu
         assert len({seed for _, _, seed, _ in cases}) == len(cases)

@@ -50,3 +50,29 @@ def test_mechanism_leaves_the_rest_pose_alone(rig, pushed, spec):
     man, _, rest = pushed
     res = simulate(rig, man, physics=[parse_physics(spec)], dissipation=False, initial_state=rest, duration=0.02, rate_hz=1000)
     assert np.abs(res.states[-1, :3] - rest[:3]).max() < 1e-9
+
+
+def test_every_mechanism_kind_has_the_one_interface_and_only_switches_on_its_own_coefficients(rig):
+    # One module each, one registry (simulate/_mechanisms): the parameter the
+    # diagnosis fits is a numeric parameter with a unit and a plausible range
+    # around its default, and applying the kind only sets coefficients that
+    # are zero in the nominal model (the force assembly never changes).
+    from dragline.simulate import MECHANISMS, make_mechanism
+    from dragline.simulate._mechanisms import MechanismType
+
+    modules = {type(kind).__module__ for kind in MECHANISMS.values()}
+    assert len(modules) == len(MECHANISMS)
+    nominal = assemble(rig, Maneuver([0.0], [8.6], [4.2])).arrays
+    for name, kind in MECHANISMS.items():
+        assert isinstance(kind, MechanismType) and kind.name == name
+        numeric = {k for k, v in kind.defaults.items() if not isinstance(v, str)}
+        assert kind.main in numeric and set(kind.units) == numeric, name
+        lo, hi = kind.range
+        assert 0 < lo < hi, name
+        with_it = assemble(rig, Maneuver([0.0], [8.6], [4.2]), physics=[make_mechanism(name)]).arrays
+        changed = [k for k in nominal if not np.array_equal(nominal[k], with_it[k])]
+        assert changed, name
+        for k in changed:
+            if k in ("air_density", "has_joints", "has_ring_friction"):
+                continue  # a constant of the drag law and the kernel's switches
+            assert not np.any(nominal[k]), (name, k)

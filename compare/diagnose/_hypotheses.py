@@ -18,7 +18,7 @@ noise level), bounded by ``MAX_SHIFT`` about the updated model's own shift.
 Fitting
 -------
 Each candidate's main parameter ``p`` is searched on ``ln p`` over its
-plausible range (``MECHANISMS[name]["range"]``): a grid of
+plausible range (``MECHANISMS[name].range``): a grid of
 ``N_GRID`` values (step 2's signature ranking: how well the best grid value
 reduces the mismatch), then, for candidates that reduce it at all, a
 bounded Brent search in the grid cell around the best value. The nominal
@@ -126,15 +126,15 @@ def candidate_list(names=None):
     ValueError
         A name that is not a mechanism.
     """
-    names = sorted(n for n in MECHANISMS if MECHANISMS[n].get("candidate", True)) if names is None else list(names)
+    names = sorted(n for n in MECHANISMS if MECHANISMS[n].candidate) if names is None else list(names)
     out = []
     for name in names:
         if name not in MECHANISMS:
             raise ValueError(f"unknown mechanism {name!r} (choose from {', '.join(sorted(MECHANISMS))})")
         entry = MECHANISMS[name]
-        main = entry["main"]
-        lo, hi = entry["range"]  # the one table of plausible ranges: the mechanism registry
-        out.append({"name": name, "main": main, "range": (float(lo), float(hi)), "doc": entry.get("doc", "")})
+        main = entry.main
+        lo, hi = entry.range  # the one table of plausible ranges: the mechanism registry
+        out.append({"name": name, "main": main, "range": (float(lo), float(hi)), "doc": entry.doc})
     return out
 
 

@@ -568,7 +568,7 @@ def _prior_rows(nuis, coords, tol, offset_sd, errs):
 def _main_of(mechanism):
     from ...simulate import MECHANISMS
 
-    return MECHANISMS[mechanism.name]["main"]
+    return MECHANISMS[mechanism.name].main
 
 
 def _sensitivities(pool, coords, which, tol, sim, state, previous):

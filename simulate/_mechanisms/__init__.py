@@ -1,0 +1,19 @@
+"""Optional physics mechanisms: one module each, one interface (``MechanismType``), one registry.
+
+A new mechanism is a ``MechanismType`` subclass in a module of its own,
+added to ``MECHANISMS`` below; the kernel coefficients it sets must exist in
+``simulate._model`` (zero in the nominal model).
+"""
+
+from ._aero_drag import AeroDrag
+from ._base import MechanismType
+from ._chain_link_friction import ChainLinkFriction
+from ._pulley_friction import PulleyFriction
+from ._pulley_inertia import PulleyInertia
+from ._rope_bending_damping import RopeBendingDamping
+from ._sheave_bearing_damping import SheaveBearingDamping
+
+__all__ = ["MECHANISMS", "MechanismType"]
+
+MECHANISMS = {kind.name: kind for kind in (ChainLinkFriction(), PulleyFriction(), PulleyInertia(),
+                                           RopeBendingDamping(), SheaveBearingDamping(), AeroDrag())}
