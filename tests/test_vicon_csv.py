@@ -639,3 +639,25 @@ def test_failed_rename_leaves_no_partial_file(tmp_path, monkeypatch):
     with pytest.raises(OSError, match="disk full"):
         write_vicon_csv(tmp_path / "m.csv", ["a"], np.zeros((5, 1, 3)), 100)
     assert os.listdir(tmp_path) == []
+
+
+SOLAVLAB_PIVOT = REAL / "solavlab_nexus216_probe_pivot.csv"
+
+
+def test_real_nexus_216_export_with_blank_lines_before_it_reads_every_value():
+    # A third lab's Nexus 2.16 export: two all-comma lines before the
+    # Trajectories section, every line padded with commas, 240 Hz, one
+    # subject's five cluster markers. Compared with plain splitting.
+    raw = SOLAVLAB_PIVOT.read_text().splitlines()
+    cells = [line.split(",") for line in raw]
+    assert not any(cells[0]) and not any(cells[1]) and cells[2][0] == "Trajectories"
+    names = [c for c in cells[4] if c]
+    rows = cells[7:]
+    n = len(names)
+    expected = np.array([[float(c) for c in r[2:2 + 3 * n]] for r in rows]).reshape(len(rows), n, 3) / 1000.0
+    export = read_vicon_csv(SOLAVLAB_PIVOT)
+    assert export.trajectories.rate_hz == float(cells[3][0]) == 240.0
+    assert export.trajectories.frame.tolist() == [int(r[0]) for r in rows] == list(range(1, 21))
+    got_names, got = marker_trajectories(export)
+    assert got_names == names == ["ZED:TOP", "ZED:BL", "ZED:BR", "ZED:FR", "ZED:FL"]
+    np.testing.assert_allclose(got, expected, rtol=1e-14, atol=0)
