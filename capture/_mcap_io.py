@@ -1,6 +1,6 @@
 """MCAP capture sessions in and out, and summaries for inspection.
 
-Foxglove results files are written by ``_foxglove``.
+Foxglove results files are written by ``compare.write_results``.
 
 Session file (``capture.mcap`` in a session directory)
 ------------------------------------------------------

@@ -16,10 +16,10 @@ import shutil
 from dataclasses import dataclass
 
 from ._marker_file import MARKER_FILE_EXTENSIONS
-from ._mcap_io import SESSION_FILE, write_session
+from ._mcap_io import SESSION_FILE
 
 __all__ = ["SESSION_FILE", "MANEUVER_FILE", "SESSION_FILES", "OUTPUT_MARKER", "session_file", "check_directory_target",
-           "atomic_directory", "mark_output", "write_session_dir", "RecordingInput", "resolve_recording"]
+           "atomic_directory", "mark_output", "RecordingInput", "resolve_recording"]
 
 MANEUVER_FILE = "maneuver.csv"
 #: Every file a command may read from a session directory.
@@ -205,30 +205,3 @@ def atomic_directory(path, fill, overwrite=False, command="synth"):
         if os.path.lexists(tmp):
             shutil.rmtree(tmp)
     return path
-
-
-def write_session_dir(path, session, maneuver=None, overwrite=False):
-    """Write a session directory (``capture.mcap``, ``maneuver.csv``) atomically.
-
-    Parameters
-    ----------
-    path : str or path-like
-    session : CaptureSession
-    maneuver : Maneuver, optional
-        Written as ``maneuver.csv`` (``write_maneuver_csv``); none if None.
-    overwrite : bool
-        Replace a non-empty directory at ``path``.
-
-    Returns
-    -------
-    str
-        The directory written.
-    """
-    from ..simulate import write_maneuver_csv
-
-    def fill(tmp):
-        write_session(os.path.join(tmp, SESSION_FILE), session)
-        if maneuver is not None:
-            write_maneuver_csv(os.path.join(tmp, MANEUVER_FILE), maneuver)
-
-    return atomic_directory(path, fill, overwrite)

@@ -1,4 +1,9 @@
-"""compare stage of dragline: measured-versus-simulated metrics and free-decay analysis."""
+"""compare stage of dragline: measured versus simulated.
+
+Metrics and free-decay analysis, the validation report, the results MCAP for
+Foxglove (``write_results``), the diagnosis (``compare.diagnose``) and the
+executors that run its simulations (local processes or Dask).
+"""
 
 from ._decay import dominant_mode, envelope_shape, free_decay, matrix_pencil
 from ._metrics import (
@@ -38,9 +43,9 @@ __all__ += [
     "write_report",
 ]
 from .diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_diagnosis_json, write_diagnosis_report
-from ._discovery_bench import bench_command, bench_discovery
+from ._foxglove import write_results
 from ._executor import DaskExecutor, Executor, ExecutorError, LocalExecutor, as_executor, executor_from
 
 __all__ += ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
-            "write_diagnosis_report", "bench_discovery", "bench_command",
+            "write_diagnosis_report", "write_results",
             "Executor", "LocalExecutor", "DaskExecutor", "ExecutorError", "executor_from", "as_executor"]

@@ -28,34 +28,34 @@ def add_parser(sub):
 
 
 def _simulate(args):
-    from dragline.simulate import bench_simulate, summary_lines
+    from dragline.benchmarks import bench_simulate, simulate_summary_lines
 
     report = bench_simulate(repeats=args.repeats)
-    return report, summary_lines(report)
+    return report, simulate_summary_lines(report)
 
 
 def _capture(args):
-    from dragline.capture import bench_capture
+    from dragline.benchmarks import bench_capture
 
     return bench_capture(seed=args.seed), []
 
 
 def _reconstruct(args):
-    from dragline.reconstruct import bench_reconstruction
+    from dragline.benchmarks import bench_reconstruction
 
     return bench_reconstruction(seed=args.seed), []
 
 
 def _triangulation(args):
-    from dragline.reconstruct import bench_triangulation
+    from dragline.benchmarks import bench_triangulation
 
     return bench_triangulation(seed=args.seed, repeats=args.repeats), []
 
 
 def _discovery(args):
-    from dragline.compare import bench_command
+    from dragline.benchmarks import discovery_command
 
-    return bench_command(args)
+    return discovery_command(args)
 
 
 BENCHES = {"simulate": _simulate, "capture": _capture, "reconstruct": _reconstruct, "triangulation": _triangulation,

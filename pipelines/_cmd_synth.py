@@ -12,16 +12,9 @@ import sys
 import time
 
 import numpy as np
-from dragline.capture import (
-    MAX_RATE_HZ,
-    atomic_directory,
-    check_directory_target,
-    default_lab_cameras,
-    synthesize_session,
-    write_session_dir,
-    write_truth,
-)
-from dragline.capture import SYNTH_DEFAULTS as DEFAULTS
+from dragline.capture import atomic_directory, check_directory_target
+from dragline.lab import MAX_RATE_HZ, default_lab_cameras, synthesize_session, write_session_dir, write_truth
+from dragline.lab import SYNTH_DEFAULTS as DEFAULTS
 from dragline.simulate import simulate
 
 from ._guard import guard_outputs

@@ -166,9 +166,8 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
         resolve_recording,
         save_cameras,
         write_json,
-        write_results,
     )
-    from dragline.compare import compare_tables, discretization_study, write_report
+    from dragline.compare import compare_tables, discretization_study, write_report, write_results
     from dragline.reconstruct import reconstruct_marker_file, reconstruct_session
     from dragline.simulate import (
         dig_maneuver,
@@ -270,12 +269,7 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
 
 def _builtin_session(tmp, seed, rig):
     import numpy as np
-    from dragline.capture import (
-        default_lab_cameras,
-        synthesize_session,
-        write_session_dir,
-        write_truth,
-    )
+    from dragline.lab import default_lab_cameras, synthesize_session, write_session_dir, write_truth
     from dragline.simulate import (
         apply_parameters,
         dig_maneuver,

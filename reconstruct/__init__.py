@@ -5,8 +5,6 @@ frames and mass centres (paper Eqs. 10, 14-16), rope length (Eq. 22),
 derivatives and smoothing (section 3.3), and gap filling.
 """
 
-from ._bench import bench_triangulation
-from ._bench_reconstruct import bench_reconstruction
 from ._bodies import body_frames_paper, body_frames_svd, body_origin, mass_centre, two_marker_position
 from ._gaps import fill_gaps, fill_rigid
 from ._rates import (

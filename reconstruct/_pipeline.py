@@ -60,6 +60,7 @@ import numpy as np
 import pandas as pd
 from numpy.lib.stride_tricks import sliding_window_view
 
+from ..capture import read_marker_file, read_session
 from ..simulate import (
     ROPE_CHANNELS,
     euler_from_matrix,
@@ -584,8 +585,6 @@ def reconstruct_session(session, cameras, rig=None, method="paper", smoothing="r
     """
     report = None
     if isinstance(session, (str, os.PathLike)):
-        from ..capture import read_session  # noqa: PLC0415
-
         session, report = read_session(session)
     cams = match_cameras(cameras, session.camera_names, session.image_size, calibration_name)
     trial = np.asarray(session.trial, dtype=float)
@@ -651,7 +650,6 @@ def reconstruct_marker_file(path, rig=None, method="paper", smoothing="running_a
         One line starting with the path: unreadable file, missing rig
         markers (named), frame numbers out of order.
     """
-    from ..capture import read_marker_file  # noqa: PLC0415
 
     path = os.fspath(path)
     markers = read_marker_file(path)

@@ -22,4 +22,3 @@ from ._tolerances import RigParameter, apply_parameters, draw_parameters
 from ._table import BODIES, BODY_QUANTITIES, ROPE_CHANNELS, trajectory_columns, write_trajectory_csv
 from ._table_schema import MAX_ROWS as MAX_TABLE_ROWS
 from ._table_schema import check_trajectory_columns
-from ._bench import bench_simulate, summary_lines

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ..capture import atomic_file
 from ._maneuver_schema import MAX_ROWS, check_maneuver_columns
 
 __all__ = ["Maneuver", "dig_maneuver", "read_maneuver_csv", "write_maneuver_csv"]
@@ -164,7 +165,6 @@ def maneuver_from_columns(columns, path):
 
 def write_maneuver_csv(path, maneuver):
     """Write a maneuver table as CSV (atomic: temporary name, then rename)."""
-    from dragline.capture import atomic_file  # noqa: PLC0415 - capture imports simulate
 
     with atomic_file(path) as tmp:
         maneuver.to_frame().to_csv(tmp, index=False, float_format="%.9g")

@@ -13,6 +13,8 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from ..capture import describe_validation_error, fields_markdown, key_text
+
 __all__ = ["ManeuverColumns", "check_maneuver_columns", "maneuver_markdown", "MAX_ROWS"]
 
 MAX_ROWS = 1_000_000
@@ -52,7 +54,6 @@ class ManeuverColumns(BaseModel):
 
 def _row_of(loc):
     """'column hoist_length, row 7' from a pydantic location (the header is row 1)."""
-    from ..capture import key_text
 
     if len(loc) >= 2 and isinstance(loc[1], int):
         return f"column {key_text(loc[0])}, row {loc[1] + 2}"
@@ -63,7 +64,6 @@ def _row_of(loc):
 
 def check_maneuver_columns(columns, path):
     """``columns`` checked against `ManeuverColumns`; ValueError with one line naming the file otherwise."""
-    from ..capture import describe_validation_error
 
     try:
         ManeuverColumns.model_validate(columns)
@@ -84,7 +84,6 @@ def check_maneuver_columns(columns, path):
 
 def maneuver_markdown():
     """The maneuver schema as a Markdown table (``docs/schemas.md`` holds this text)."""
-    from ..capture import fields_markdown
 
     header = ["| column | type | default | allowed | meaning |", "|---|---|---|---|---|"]
     return "\n".join(header + fields_markdown(ManeuverColumns)) + "\n"

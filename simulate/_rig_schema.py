@@ -17,6 +17,8 @@ from typing import Annotated, Any, Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from ..capture import describe_validation_error, fields_markdown, short_repr
+
 __all__ = ["RigFile", "check_rig_doc", "rig_markdown", "MAX_PARTICLES"]
 
 # A rope of more particles than this is a typo, not a discretization (the
@@ -114,7 +116,6 @@ class RigFile(_Strict):
 
 def check_rig_doc(doc, source):
     """``doc`` (parsed TOML) checked against `RigFile`; ValueError with one line naming the file otherwise."""
-    from ..capture import describe_validation_error, short_repr
 
     try:
         RigFile.model_validate(doc)
@@ -131,7 +132,6 @@ def check_rig_doc(doc, source):
 
 def rig_markdown():
     """The rig file schema as Markdown tables (``docs/schemas.md`` holds this text)."""
-    from ..capture import fields_markdown
 
     header = ["| key | type | default | allowed | meaning |", "|---|---|---|---|---|"]
     blocks = [header + fields_markdown(RigFile)]

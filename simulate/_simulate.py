@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time as _clock
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -54,6 +55,14 @@ class SimulationResult:
         Integration step (s): the smallest taken.
     equilibrium_residual : float
         Largest static imbalance of the starting pose (N or N m).
+    steps : int
+        Integration steps taken.
+    dt_start : float
+        The step the run started with (s).
+    timings : dict
+        Wall time (s) of the call's parts: ``statics_s`` (0 when started
+        from ``initial_state``) and ``integrate_s`` (choosing the step and
+        integrating); what ``dragline bench simulate`` reports.
     """
 
     time: np.ndarray
@@ -61,6 +70,9 @@ class SimulationResult:
     model: object
     dt: float
     equilibrium_residual: float
+    steps: int = 0
+    dt_start: float = float("nan")
+    timings: dict = field(default_factory=dict)
 
     @property
     def table(self):
@@ -310,6 +322,7 @@ def simulate(
     model = assemble(rig, maneuver, discretization, physics=physics, dissipation=dissipation)
     check_reel_table(model)
     t0 = float(maneuver.time[0])
+    clock = _clock.perf_counter()
     if initial_state is None:
         # Every mechanism acts only on motion (or is modelled so), so the
         # rest pose is the nominal model's; its statics are also cheaper.
@@ -321,6 +334,7 @@ def simulate(
         y0, residual = eq.state, eq.residual
     else:
         y0, residual = np.array(initial_state, float), float("nan")
+    statics_s = _clock.perf_counter() - clock
     out_dt = 1.0 / rate_hz
     n_records = int(round(duration * rate_hz))
     needed = (n_records + 1) * model.n_state * 8
@@ -330,6 +344,7 @@ def simulate(
     m = model.kernel_tuple()
     work = _kernel.make_work(m)
     method = INTEGRATORS[integrator]
+    clock = _clock.perf_counter()
     if dt is None:
         dt0, lam0 = start_time_step(model, y0, t0, integrator=integrator)
         records, substeps, status, bad_time, bad_index = integrate_tracked(
@@ -341,9 +356,11 @@ def simulate(
                 f"{out_dt / max(bad_index, 1):.2g} s would be needed (a rope or chain element near zero length? "
                 f"check the maneuver's reel lengths), more than the {MAX_STEPS:.0e} steps allowed")
         step = out_dt / max(int(substeps.max(initial=1)), 1)  # the smallest step taken
+        steps, dt_start = int(substeps.sum()), out_dt / max(int(substeps[0]), 1) if len(substeps) else dt0
     else:
         per_record = max(1, int(np.ceil(out_dt / float(dt) - 1e-9)))
-        step = out_dt / per_record
+        step = dt_start = out_dt / per_record
+        steps = n_records * per_record
         if method == VERLET:
             # lam0 = inf: the step is never cut, nor refined at a slack change (a fixed step was asked)
             records, _, status, bad_time, bad_index = integrate_tracked(
@@ -358,5 +375,8 @@ def simulate(
         raise SimulationError(
             f"simulation blew up at t = {bad_time:.4f} s: {what} in {model.describe_state_index(bad_index)}"
         )
+    integrate_s = _clock.perf_counter() - clock
     time = t0 + np.arange(records.shape[0]) * out_dt
-    return SimulationResult(time=time, states=records, model=model, dt=step, equilibrium_residual=residual)
+    return SimulationResult(time=time, states=records, model=model, dt=step, equilibrium_residual=residual,
+                            steps=steps, dt_start=dt_start,
+                            timings={"statics_s": statics_s, "integrate_s": integrate_s})

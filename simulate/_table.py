@@ -9,6 +9,8 @@ and body rates ``p q r`` (rad/s); ropes carry ``length`` (m). Extra columns
 
 from __future__ import annotations
 
+from ..capture import atomic_file
+
 __all__ = ["BODIES", "BODY_QUANTITIES", "ROPE_CHANNELS", "trajectory_columns", "write_trajectory_csv"]
 
 BODIES = ("bucket", "spreader_bar", "hoist_cluster", "drag_cluster")
@@ -36,7 +38,6 @@ def write_trajectory_csv(path, table):
 
     Nine significant digits: 1 nm at 1 m, far below any measurement.
     """
-    from dragline.capture import atomic_file  # noqa: PLC0415 - capture imports simulate
 
     with atomic_file(path) as tmp:
         table.to_csv(tmp, index=False, float_format="%.9g")

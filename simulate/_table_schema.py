@@ -16,6 +16,8 @@ from typing import Annotated, Optional
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from ..capture import describe_validation_error, fields_markdown, key_text
+
 __all__ = ["TrajectoryColumns", "check_trajectory_columns", "trajectory_markdown", "MAX_ROWS"]
 
 MAX_ROWS = 10_000_000
@@ -51,7 +53,6 @@ class TrajectoryColumns(BaseModel):
 
 def check_trajectory_columns(columns, what):
     """``columns`` (``{"time": [...], "channels": {...}}``) checked; ValueError naming ``what`` otherwise."""
-    from ..capture import describe_validation_error, key_text
 
     try:
         TrajectoryColumns.model_validate(columns)
@@ -75,7 +76,6 @@ def check_trajectory_columns(columns, what):
 
 def trajectory_markdown():
     """The trajectory-table schema as a Markdown table (``docs/schemas.md`` holds this text)."""
-    from ..capture import fields_markdown
 
     header = ["| column | type | default | allowed | meaning |", "|---|---|---|---|---|"]
     return "\n".join(header + fields_markdown(TrajectoryColumns)) + "\n"

@@ -35,6 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..capture import key_text
+
 __all__ = ["RigParameter", "parse_tolerances", "apply_parameters", "draw_parameters"]
 
 _ROPE_PROPERTIES = ("static_stiffness", "viscous_stiffness", "viscous_damping")
@@ -102,7 +104,6 @@ def parse_tolerances(doc, bodies, ropes, fixed, source="rig"):
         An unknown key, body, rope, group, point or reel, or a tolerance that
         is not one positive finite number.
     """
-    from ..capture import key_text  # capture imports simulate: not at module level
 
     groups = {k: tuple(v) for k, v in doc.get("tolerance_groups", {}).items()}
     for g, members in groups.items():

@@ -1,10 +1,10 @@
-"""The MoorDyn peer benchmark: the two codes model the same line (simulate/_bench_moordyn.py)."""
+"""The MoorDyn peer benchmark: the two codes model the same line (benchmarks/_moordyn_peer.py)."""
 
 import numpy as np
 import pytest
 
 from dragline.simulate import assemble, solve_statics
-from dragline.simulate._bench_moordyn import (
+from dragline.benchmarks._moordyn_peer import (
     AMPLITUDE,
     FAIRLEAD,
     FREQUENCY,

@@ -1,6 +1,6 @@
 """Calibration from L-frame and wand takes, against the synthetic lab's truth.
 
-The truth is the lab's cameras (capture._lab); the takes are their
+The truth is the lab's cameras (lab.default_lab_cameras); the takes are their
 projections (capture._cameras.project_points, OpenCV) plus Gaussian centroid
 noise, points off the image dropped. Nothing here is compared with numbers
 taken from calibrate's own output.
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from dragline.capture._calibration import calibrate, triangulate_views
-from dragline.capture._calibration_bench import synthesise_takes
+from dragline.benchmarks._calibration import synthesise_takes
 from dragline.capture._cameras import camera_centre, project_points
-from dragline.capture._lab import (
+from dragline.lab._layout import (
     IMAGE_SIZE,
     NOMINAL_FOCAL_PX,
     WAND_LENGTH,
@@ -21,7 +21,7 @@ from dragline.capture._lab import (
     lframe_points,
     wand_motion,
 )
-from dragline.capture._synth import project_views
+from dragline.lab._synth import project_views
 from dragline.simulate import marker_positions
 
 NOISE_PX = 0.3

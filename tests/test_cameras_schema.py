@@ -18,7 +18,7 @@ import pytest
 from conftest import REPO
 from dragline.capture._cameras import load_cameras, save_cameras
 from dragline.capture._cameras_schema import cameras_markdown
-from dragline.capture._lab import default_lab_cameras
+from dragline.lab import default_lab_cameras
 from dragline.pipelines.cli import main
 
 

@@ -16,7 +16,7 @@ from mcap.reader import make_reader
 
 from dragline.capture import read_session, write_session
 from dragline.capture._cameras import camera_centre, load_cameras, project_points
-from dragline.capture._lab import WAND_LENGTH, default_lab_cameras
+from dragline.lab import WAND_LENGTH, default_lab_cameras
 from dragline.pipelines.cli import main
 from dragline.simulate import MECHANISMS, dig_maneuver, load_rig, marker_names, trajectory_columns
 

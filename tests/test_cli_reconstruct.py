@@ -16,7 +16,7 @@ import pytest
 
 from dragline.capture import CaptureSession, write_session, write_vicon_csv
 from dragline.capture._cameras import Camera, project_points, save_cameras
-from dragline.capture._lab import NOMINAL_FOCAL_PX, default_lab_cameras
+from dragline.lab import NOMINAL_FOCAL_PX, default_lab_cameras
 from dragline.pipelines.cli import main
 from dragline.simulate import marker_positions, simulate, trajectory_columns
 

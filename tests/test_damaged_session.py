@@ -15,7 +15,7 @@ from mcap.reader import make_reader
 
 from dragline.capture import read_session
 from dragline.capture._cameras import camera_centre, load_cameras
-from dragline.capture._lab import default_lab_cameras
+from dragline.lab import default_lab_cameras
 from dragline.pipelines.cli import main
 
 SEED = 5

@@ -301,9 +301,7 @@ def test_marker_export_of_another_rig_exits_2(tmp_path, nominal_run, capsys):
 
 def test_session_directory_is_diagnosed_from_the_motion_alone(tmp_path, nominal_run):
     """A synthesised session (cameras, noise, occlusion, wand calibration) of the nominal model: "none"."""
-    from dragline.capture import synthesize_session
-    from dragline.capture._lab import default_lab_cameras
-    from dragline.capture._session_io import write_session_dir
+    from dragline.lab import default_lab_cameras, synthesize_session, write_session_dir
 
     session, _ = synthesize_session(nominal_run, default_lab_cameras(4), seed=4)
     folder = tmp_path / "session"

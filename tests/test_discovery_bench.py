@@ -3,7 +3,7 @@
 import math
 
 import pytest
-from dragline.compare._discovery_bench import MAGNITUDES, REALISTIC_MAGNITUDES, _summarise, default_cases
+from dragline.benchmarks._discovery import MAGNITUDES, REALISTIC_MAGNITUDES, _summarise, default_cases
 from dragline.compare.diagnose._hypotheses import N_GRID
 from dragline.simulate import MECHANISMS
 
@@ -28,7 +28,7 @@ def test_default_cases_hold_enough_no_physics_cases_with_distinct_seeds():
 
 
 def test_realistic_cases_hold_no_mechanism_and_out_of_menu_shares():
-    from dragline.compare._discovery_bench import realistic_cases
+    from dragline.benchmarks._discovery import realistic_cases
 
     for quick in (False, True):
         cases = realistic_cases(quick=quick)
@@ -75,7 +75,7 @@ def test_the_weakest_realistic_magnitudes_move_the_bucket_beyond_the_models_own_
     # bucket (its distance from the converged solution, docs/diagnosis.md)
     # cannot be told from the model's error: the realistic set starts above
     # it, and the limit cases probe below.
-    from dragline.compare._discovery_bench import REALISTIC_LIMIT_CASES, _effect_size, _truth_world
+    from dragline.benchmarks._discovery import REALISTIC_LIMIT_CASES, _effect_size, _truth_world
     from dragline.simulate import simulate
 
     seed = 1503

@@ -33,7 +33,7 @@ from mcap.reader import make_reader
 from conftest import REPO
 from dragline.capture._cameras import Camera, save_cameras
 from dragline.capture._cameras_schema import check_cameras_doc
-from dragline.capture._lab import default_lab_cameras
+from dragline.lab import default_lab_cameras
 from dragline.capture._mcap_io import INFO_TOPIC
 from dragline.capture._session_schema import check_session_info
 from dragline.pipelines._config_schema import validate_config

@@ -14,7 +14,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 
-from dragline.capture._foxglove import quaternion_from_matrix, write_results
+from dragline.compare._foxglove import quaternion_from_matrix, write_results
 from dragline.capture._mcap_io import CaptureSession, read_session, summarize_mcap, write_session
 from dragline.simulate import body_to_inertial
 

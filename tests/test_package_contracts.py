@@ -3,6 +3,9 @@
 - Each stage package's ``__init__`` is its public interface: across
   packages, code imports only from it, never from another package's
   private ``_module``.
+- Imports run one way, down the stage order (``PACKAGES``): capture,
+  simulate, reconstruct, the synthetic lab, compare, the benchmarks, the
+  command. A package never imports a later one, not even at call time.
 - The code cites the project's own docs/, never a document outside the
   repository.
 """
@@ -12,7 +15,7 @@ import re
 
 from conftest import REPO
 
-PACKAGES = ["capture", "reconstruct", "simulate", "compare", "pipelines"]
+PACKAGES = ["capture", "simulate", "reconstruct", "lab", "compare", "benchmarks", "pipelines"]
 
 
 def _imported_module(path, node):
@@ -42,6 +45,42 @@ def test_no_package_imports_another_packages_private_module():
     assert not crossings, "\n".join(crossings)
 
 
+def _dragline_imports(path):
+    """(line, package) of every dragline package a source file imports, at any depth of the code."""
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            names = [_imported_module(path, node)]
+        elif isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        else:
+            continue
+        for name in names:
+            parts = name.split(".")
+            if parts[0] == "dragline" and len(parts) > 1:
+                yield node.lineno, parts[1]
+
+
+def test_imports_run_down_the_stage_order():
+    upward = []
+    for path in _sources():
+        package = path.relative_to(REPO).parts[0]
+        for lineno, target in _dragline_imports(path):
+            if target in PACKAGES and PACKAGES.index(target) > PACKAGES.index(package):
+                upward.append(f"{path.relative_to(REPO)}:{lineno} ({package}) imports {target}")
+    assert not upward, "\n".join(upward)
+
+
+def test_the_order_checker_sees_an_upward_import(tmp_path):
+    """The rule above can fail: a capture module importing simulate is found."""
+    (tmp_path / "capture").mkdir()
+    source = tmp_path / "capture" / "_x.py"
+    source.write_text("def f():\n    from ..simulate import simulate\n")
+    node = ast.parse(source.read_text()).body[0].body[0]
+    parts = _imported_module(REPO / "capture" / "_x.py", node).split(".")
+    assert parts[:2] == ["dragline", "simulate"]
+    assert PACKAGES.index(parts[1]) > PACKAGES.index("capture")
+
+
 def test_the_checker_sees_a_private_crossing(tmp_path):
     """The rule above can fail: the same resolution applied to a line that crosses."""
     node = ast.parse("from ..capture._cameras import Camera").body[0]
@@ -54,7 +93,9 @@ def test_code_and_tests_cite_only_documents_in_the_repository():
     brief = "sha" + "red"
     outside = re.compile(rf"\bDESIGN\s+\d|\.\./{brief}\b|/{brief}/|\b{brief}/(?:DESIGN|seed|data)")
     found = []
-    for path in [*_sources(), *sorted((REPO / "tests").glob("*.py")), *sorted((REPO / "tools").glob("*.py"))]:
+    documents = [*sorted((REPO / "docs").glob("*.md")), REPO / "README.md", *sorted(REPO.glob("*/data/*.toml")),
+                 *sorted((REPO / "samples").rglob("*.md"))]
+    for path in [*_sources(), *sorted((REPO / "tests").glob("*.py")), *sorted((REPO / "tools").glob("*.py")), *documents]:
         for number, line in enumerate(path.read_text().splitlines(), 1):
             if outside.search(line):
                 found.append(f"{path.relative_to(REPO)}:{number}: {line.strip()}")

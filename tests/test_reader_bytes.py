@@ -47,7 +47,7 @@ def _readers(folder):
     from dragline.capture import read_session, read_vicon_csv
     from dragline.capture._c3d import read_c3d
     from dragline.capture._cameras import load_cameras, save_cameras
-    from dragline.capture._lab import default_lab_cameras
+    from dragline.lab import default_lab_cameras
     from dragline.capture._trc import read_trc
     from dragline.compare import read_trajectory_table
     from dragline.pipelines._run import read_config

@@ -13,7 +13,7 @@ import pytest
 
 from dragline.capture import write_vicon_csv
 from dragline.capture._cameras import Camera, project_points
-from dragline.capture._lab import default_lab_cameras
+from dragline.lab import default_lab_cameras
 from dragline.reconstruct import (
     RunningAverage,
     fill_markers,

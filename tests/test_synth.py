@@ -13,11 +13,9 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from dragline.capture import read_session, synthesize_session
-from dragline.capture._cameras import Camera, camera_centre, project_points
-from dragline.capture._lab import WAND_LENGTH, default_lab_cameras, lframe_points
-from dragline.capture._session_io import atomic_directory, session_file, write_session_dir
-from dragline.capture._synth import (
+from dragline.capture import Camera, atomic_directory, camera_centre, project_points, read_session, session_file
+from dragline.lab import WAND_LENGTH, default_lab_cameras, lframe_points, synthesize_session, write_session_dir
+from dragline.lab._synth import (
     GHOST_OFFSET_PX,
     add_ghosts,
     body_boxes,

@@ -76,9 +76,7 @@ def build_seeds(folder):
     """The valid inputs every case starts from, in ``folder``."""
     from importlib import resources
 
-    from dragline.capture import write_vicon_csv
-    from dragline.capture._c3d import write_c3d
-    from dragline.capture._trc import write_trc
+    from dragline.capture import write_c3d, write_trc, write_vicon_csv
     from dragline.pipelines.cli import main
     from dragline.simulate import marker_positions, simulate, write_trajectory_csv
 

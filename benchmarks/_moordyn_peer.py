@@ -40,12 +40,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from ._maneuver import Maneuver
-from ._model import assemble
-from ._rig import rig_from_dict
-from ._simulate import simulate
-from ._statics import solve_statics
-from ._time_step import stable_time_step
+from dragline.simulate import Maneuver, assemble, rig_from_dict, simulate, solve_statics, stable_time_step
 
 __all__ = ["bench_moordyn", "line_rig", "line_maneuver", "MoorDynLine"]
 

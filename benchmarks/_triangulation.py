@@ -1,6 +1,6 @@
 """Triangulation benchmark: ours against pairwise OpenCV triangulation.
 
-``bench_triangulation`` builds six cameras around the rig volume, draws
+``bench_triangulation`` takes the simulated lab's six cameras, draws
 random points in the box x in [-6, 0], y in [-1.5, 1.5], z in [-2.5, 0] m
 (``VOLUME``) that all six cameras see, projects them with distortion, adds
 centroid noise, and times
@@ -21,54 +21,17 @@ import time
 import cv2
 import numpy as np
 
-from ..capture import Camera, project_points
-from ._triangulate import triangulate, undistort_detections
+from dragline.capture import project_points
+from dragline.lab import default_lab_cameras
+from dragline.reconstruct import triangulate, undistort_detections
 
 __all__ = ["bench_triangulation", "bench_cameras"]
 
 VOLUME = np.array([[-6.0, -1.5, -2.5], [0.0, 1.5, 0.0]])  # m, min and max corner
 
-
-def _look_at(centre, target, name, f=1000.0, size=(1280, 960), dist=(0, 0, 0, 0, 0)):
-    forward = np.asarray(target, float) - centre
-    forward /= np.linalg.norm(forward)
-    # Image "down" is the inertial +K (gravity) direction, as a mounted camera sees it.
-    down = np.array([0.0, 0.0, 1.0]) - forward[2] * forward
-    down /= np.linalg.norm(down)
-    right = np.cross(down, forward)
-    R = np.stack([right, down, forward])
-    K = [[f, 0, size[0] / 2], [0, f, size[1] / 2], [0, 0, 1]]
-    rvec = cv2.Rodrigues(R)[0].ravel()
-    return Camera(name, size, K, dist, rvec, -R @ centre)
-
-
 def bench_cameras():
-    """Six cameras around the rig volume, 1280 x 960 px.
-
-    Uses ``capture._lab.default_lab_cameras`` (the simulated lab) when that
-    module exists, else a local layout: three cameras either side of the
-    volume x in [-6, 0] m, 3.2 m above the ground, aimed at its centre,
-    f = 1000 px, mild distortion.
-    """
-    return _cameras_and_layout()[0]
-
-
-def _cameras_and_layout():
-    try:
-        from ..capture import default_lab_cameras  # noqa: PLC0415
-    except ImportError:
-        return _local_cameras(), "local"
-    return list(default_lab_cameras()), "capture._lab.default_lab_cameras"
-
-
-def _local_cameras():
-    target = VOLUME.mean(axis=0)
-    spots = [(2.0, -3.5), (-3.0, -5.0), (-8.0, -3.5), (2.0, 3.5), (-3.0, 5.0), (-8.0, 3.5)]
-    cams = []
-    for i, (x, y) in enumerate(spots):
-        dist = (-0.08 + 0.01 * i, 0.02, 4e-4, -3e-4, 0.0)
-        cams.append(_look_at(np.array([x, y, -3.2]), target, f"cam{i + 1}", dist=dist))
-    return cams
+    """The six cameras of the simulated lab (``lab.default_lab_cameras``), 1280 x 960 px."""
+    return list(default_lab_cameras())
 
 
 def _in_image(px, cam):
@@ -127,7 +90,7 @@ def bench_triangulation(seed=0, frames=5000, markers=40, noise_px=0.3, repeats=5
         ``noise_px``; ``load_average_1min`` of the machine before timing.
     """
     rng = np.random.default_rng(seed)
-    cams, layout = _cameras_and_layout()
+    cams, layout = bench_cameras(), "lab.default_lab_cameras"
     n = frames * markers
     pts = np.empty((0, 3))
     for _ in range(50):

@@ -26,7 +26,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ._cameras import Camera
+from ..capture import Camera
 
 __all__ = [
     "IMAGE_SIZE",

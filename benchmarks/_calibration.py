@@ -1,6 +1,6 @@
 """Benchmark of ``calibrate`` against the synthetic lab's truth.
 
-Run ``python -m dragline.capture._calibration_bench [n_frames]`` for a
+Run ``python -m dragline.benchmarks._calibration [n_frames]`` for a
 printed summary.
 """
 
@@ -12,10 +12,17 @@ import time
 
 import numpy as np
 
-from ._calibration import calibrate, triangulate_views
-from ._cameras import camera_centre
-from ._lab import IMAGE_SIZE, NOMINAL_FOCAL_PX, WAND_LENGTH, default_lab_cameras, lframe_points, wand_motion
-from ._synth import on_sensor, project_views
+from dragline.capture import calibrate, camera_centre, triangulate_views
+from dragline.lab import (
+    IMAGE_SIZE,
+    NOMINAL_FOCAL_PX,
+    WAND_LENGTH,
+    default_lab_cameras,
+    lframe_points,
+    on_sensor,
+    project_views,
+    wand_motion,
+)
 
 __all__ = ["bench_calibration", "synthesise_takes"]
 

@@ -3,7 +3,7 @@
 Synthesise a default session (the dig maneuver, default realism), calibrate
 it from its takes alone, triangulate the trial with the calibrated cameras
 and compare with what only the truth knows. Run
-``python -m dragline.capture._capture_bench [seed]`` for a printed summary.
+``python -m dragline.benchmarks._capture [seed]`` for a printed summary.
 """
 
 from __future__ import annotations
@@ -14,10 +14,11 @@ import time
 
 import numpy as np
 
-from ._calibration import calibrate
-from ._cameras import camera_centre
-from ._lab import default_lab_cameras
-from ._synth import DEFAULTS, synthesize_session
+from dragline.capture import calibrate, camera_centre
+from dragline.lab import SYNTH_DEFAULTS as DEFAULTS
+from dragline.lab import default_lab_cameras, synthesize_session
+from dragline.reconstruct import triangulate
+from dragline.simulate import simulate
 
 __all__ = ["bench_capture"]
 
@@ -56,8 +57,6 @@ def bench_capture(seed=0, duration=10.0, noise_px=DEFAULTS["noise_px"]):
         (views ``triangulate`` dropped as outliers); ``synth_wall_time_s``
         (simulation and filming).
     """
-    from ..reconstruct import triangulate  # reconstruct imports capture: import at call time
-    from ..simulate import simulate
 
     t0 = time.perf_counter()
     result = simulate(duration=duration, rate_hz=200.0)

@@ -1,7 +1,7 @@
 """Synthetic lab sessions: a simulation filmed by the lab's six cameras.
 
 What the cameras of a real lab would record, made from a simulation and the
-true cameras of ``dragline.capture._lab``. Each realism stage is a plain
+true cameras of ``lab.default_lab_cameras``. Each realism stage is a plain
 function over arrays, applied in this order by :func:`synthesize_session`:
 
 1. :func:`project_views`: exact pixel views, NaN behind a camera, beyond the
@@ -42,12 +42,9 @@ import os
 
 import numpy as np
 
+from ..capture import CaptureSession, camera_centre, project_points, save_cameras, write_json, write_vicon_csv
 from ..simulate import body_to_inertial, marker_positions, write_trajectory_csv
-from ._cameras import camera_centre, project_points, save_cameras
-from ._lab import NOMINAL_FOCAL_PX, WAND_LENGTH, lframe_points, wand_motion
-from ._mcap_io import CaptureSession
-from ._strict_json import write_json
-from ._vicon_csv import write_vicon_csv
+from ._layout import NOMINAL_FOCAL_PX, WAND_LENGTH, lframe_points, wand_motion
 
 __all__ = [
     "DEFAULTS",

@@ -40,8 +40,17 @@ import time
 
 import numpy as np
 
-from ..simulate import MECHANISMS, make_mechanism, simulate
-from ._executor import as_executor, executor_from
+from dragline.compare import as_executor, diagnose_path, executor_from, write_diagnosis_json
+from dragline.lab import default_lab_cameras, synthesize_session, write_session_dir
+from dragline.simulate import (
+    MECHANISMS,
+    apply_parameters,
+    dig_maneuver,
+    draw_parameters,
+    load_rig,
+    make_mechanism,
+    simulate,
+)
 
 __all__ = ["MAGNITUDES", "LIMIT_CASES", "REALISTIC_MAGNITUDES", "REALISTIC_LIMIT_CASES", "default_cases",
            "realistic_cases", "bench_discovery", "summary_lines",
@@ -152,7 +161,6 @@ def _truth_world(name, value, seed, effect=True):
     ``effect=False``: the same world without the case's effect (no
     mechanism; the drawn material damping kept), to measure its size.
     """
-    from ..simulate import apply_parameters, dig_maneuver, draw_parameters, load_rig
 
     rig = load_rig()
     params = rig.tolerances
@@ -188,9 +196,6 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False):
     machine that runs the case when None); ``keep``: return the case's
     diagnosis document too (under ``diagnosis``).
     """
-    from ..capture import default_lab_cameras, synthesize_session, write_session_dir
-    from ..simulate import dig_maneuver
-    from .diagnose import diagnose_path
 
     own = workdir is None
     workdir = tempfile.mkdtemp(prefix="dragline-case-") if own else workdir
@@ -254,7 +259,6 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False):
 
 def _calibration_errors(doc, coords):
     """Per rig parameter: truth and estimate in tolerances, identifiable or not."""
-    from ..simulate import load_rig
 
     params = load_rig().tolerances
     entries = {e["parameter"]: e for e in doc.get("calibration", {}).get("parameters", [])}
@@ -315,7 +319,6 @@ def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, pr
     def finished(result):
         doc = result.pop("diagnosis", None)
         if doc is not None:
-            from .diagnose import write_diagnosis_json
 
             os.makedirs(keep, exist_ok=True)
             write_diagnosis_json(os.path.join(keep, f"case{result['seed']}.json"), doc)

@@ -30,9 +30,9 @@ from datetime import datetime, timezone
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..capture import MCAP_CHUNK_SIZE as CHUNK_SIZE
+from ..capture import atomic_file
 from ..simulate import BODIES, body_to_inertial
-from ._atomic import atomic_file
-from ._mcap_io import CHUNK_SIZE
 
 __all__ = ["write_results", "quaternion_from_matrix"]
 

@@ -4,12 +4,12 @@
 the simulated lab's six true cameras, reconstructs it, and scores the result
 against the simulation:
 
-* the session: ``capture._synth.synthesize_session`` at its defaults (0.3 px
+* the session: ``lab.synthesize_session`` at its defaults (0.3 px
   centroid noise, occlusion by the bodies, 1 % dropouts, 0.2 % ghosts) when
   that module is present, else Gaussian noise only; a second, noise-only
   session (projection plus Gaussian noise, nothing else) is scored too;
 * the cameras are the *true* ones, so the figures isolate reconstruction
-  from calibration (``capture._calibration_bench`` scores that);
+  from calibration (``benchmarks._calibration`` scores that);
 * figures: marker RMS error (3D and per coordinate) beside the Cramer-Rao
   floor of the views used, raw and after outlier removal and gap filling
   (``fill_markers``, what the table is made from), bucket mass-centre and pitch RMS error, rope
@@ -30,10 +30,11 @@ import time
 
 import numpy as np
 
-from ..capture import default_lab_cameras, project_views
-from ..simulate import load_rig, marker_positions, simulate
-from ._bench import bench_triangulation
-from ._pipeline import fill_markers, reconstruct_markers, trajectory_from_markers
+from dragline.lab import SYNTH_DEFAULTS, default_lab_cameras, project_views, synthesize_session
+from dragline.reconstruct import fill_markers, reconstruct_markers, trajectory_from_markers
+from dragline.simulate import load_rig, marker_positions, simulate
+
+from ._triangulation import bench_triangulation
 
 __all__ = ["bench_reconstruction", "TARGETS"]
 
@@ -58,15 +59,10 @@ def _gaussian_session(pos, cameras, noise_px, rng):
 
 
 def _synth_session(result, cameras, seed, noise_px):
-    """Trial detections from ``synthesize_session`` (defaults), or None without that module."""
-    try:
-        from ..capture import SYNTH_DEFAULTS as DEFAULTS  # noqa: PLC0415
-        from ..capture import synthesize_session
-    except ImportError:
-        return None, None
-    noise = DEFAULTS["noise_px"] if noise_px is None else noise_px
+    """Trial detections from ``synthesize_session`` (its default realism) and the settings used."""
+    noise = SYNTH_DEFAULTS["noise_px"] if noise_px is None else noise_px
     session, _ = synthesize_session(result, cameras, seed=seed, noise_px=noise, wand_frames=0, lframe_frames=0)
-    settings = {k: DEFAULTS[k] for k in ("dropout", "ghost_rate", "occlusion")}
+    settings = {k: SYNTH_DEFAULTS[k] for k in ("dropout", "ghost_rate", "occlusion")}
     return session.trial, {"noise_px": noise, **settings}
 
 
@@ -188,10 +184,7 @@ def bench_reconstruction(seed=0, duration=10.0, rate_hz=200.0, noise_px=None, sp
     cameras = list(default_lab_cameras(seed))
     rng = np.random.default_rng(seed)
     det, realism = _synth_session(result, cameras, seed, noise_px)
-    noise = realism["noise_px"] if realism else (0.3 if noise_px is None else noise_px)
-    if det is None:
-        det = _gaussian_session(truth_markers, cameras, noise, rng)
-        realism = {"noise_px": noise, "note": "capture._synth not available: Gaussian noise only"}
+    noise = realism["noise_px"]
     clean = _gaussian_session(truth_markers, cameras, noise, rng)
 
     everything = _score(det, cameras, names, truth_markers, truth, rate_hz, noise, rates=True)

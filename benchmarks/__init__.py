@@ -1,0 +1,47 @@
+"""Benchmarks: what dragline measures of itself, as figures (JSON), never pass/fail.
+
+``dragline bench WHAT`` is the user's entry; each benchmark is also a plain
+function here. They use only the stage packages' public interfaces, so they
+measure what a user's code would get.
+
+- ``bench_simulate`` (``simulate_summary_lines``): the simulator's speed and
+  accuracy per discretization level, against a converged reference, and
+  ``bench_moordyn``, the same line in MoorDyn at equal accuracy
+- ``bench_capture``: a synthetic session calibrated from its own takes and
+  triangulated; ``bench_calibration``: calibration alone
+- ``bench_reconstruction``: marker, body and rope figures against the truth;
+  ``bench_triangulation``: speed against OpenCV's pairwise triangulation
+- ``bench_discovery`` (``discovery_command``, ``discovery_summary_lines``):
+  blind sessions diagnosed and scored against the physics hidden in them
+
+``bench_executor.py`` (a script) measures the executors' scheduling cost.
+"""
+
+import importlib
+
+# name -> (module, attribute). Loaded on first use: a benchmark imports only the stages it measures, so
+# the simulator's figures (its peak memory too) carry nothing of the lab, the diagnosis or Dask.
+_EXPORTS = {
+    "bench_simulate": ("_simulator", "bench_simulate"),
+    "simulate_summary_lines": ("_simulator", "summary_lines"),
+    "bench_moordyn": ("_moordyn_peer", "bench_moordyn"),
+    "bench_capture": ("_capture", "bench_capture"),
+    "bench_calibration": ("_calibration", "bench_calibration"),
+    "bench_triangulation": ("_triangulation", "bench_triangulation"),
+    "bench_reconstruction": ("_reconstruction", "bench_reconstruction"),
+    "bench_discovery": ("_discovery", "bench_discovery"),
+    "discovery_command": ("_discovery", "bench_command"),
+    "discovery_summary_lines": ("_discovery", "summary_lines"),
+}
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    module, attribute = _EXPORTS[name]
+    return getattr(importlib.import_module(f"{__name__}.{module}"), attribute)
+
+
+def __dir__():
+    return __all__
