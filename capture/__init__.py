@@ -11,7 +11,8 @@
   folder dragline wrote)
 - other labs' files: C3D (``read_c3d``, ``write_c3d``, ``is_c3d``), TRC
   (``read_trc``, ``write_trc``, ``is_trc``), any of them by extension
-  (``read_marker_file``, ``MARKER_FILE_EXTENSIONS``)
+  (``read_marker_file``, ``MARKER_FILE_EXTENSIONS``), a trial cut between two
+  of a file's labelled events (``between_events``, ``event_frame``)
 - helpers every stage uses: strict JSON (``json_text``, ``json_ready``,
   ``write_json``) and schema messages (``describe_validation_error``,
   ``fields_markdown``, ``key_text``, ``short_repr``)
@@ -45,4 +46,4 @@ from ._session_io import (
 from ._vicon_csv import ViconExport, ViconSection, marker_trajectories, read_vicon_csv, summarize_vicon_csv, write_vicon_csv
 from ._c3d import is_c3d, read_c3d, write_c3d
 from ._trc import is_trc, read_trc, write_trc
-from ._marker_file import MARKER_FILE_EXTENSIONS, read_marker_file
+from ._marker_file import MARKER_FILE_EXTENSIONS, MarkerFile, between_events, event_frame, read_marker_file

@@ -68,7 +68,7 @@ def _parse(path):
     c3d = ezc3d.c3d(path, extract_forceplat_data=False)
     params = {group: {name: c3d["parameters"][group][name] for name in c3d["parameters"][group]
                       if name != "__METADATA__"}
-              for group in ("POINT", "ANALOG", "MANUFACTURER") if group in c3d["parameters"]}
+              for group in ("POINT", "ANALOG", "MANUFACTURER", "EVENT") if group in c3d["parameters"]}
     data = {"points": np.asarray(c3d["data"]["points"]),
             "meta_points": {"residuals": np.asarray(c3d["data"].get("meta_points", {}).get(
                 "residuals", np.zeros((1, 0, 0))))},
@@ -203,7 +203,28 @@ def read_c3d(path):
             info[key.lower()] = " ".join(str(v) for v in value).strip()
     return MarkerFile(path=path, format="c3d", names=names, positions=xyz, rate_hz=rate,
                       # ezc3d counts from 0; the file (and every lab's software) from 1.
-                      first_frame=int(header["points"]["first_frame"]) + 1, units=units, analog=analog, info=info)
+                      first_frame=int(header["points"]["first_frame"]) + 1, units=units, analog=analog, info=info,
+                      events=_events(params))
+
+
+def _events(params):
+    """The EVENT group's labelled times (TIMES holds minutes and seconds per event), in file order."""
+    times = _param(params, "EVENT", "TIMES")
+    times = np.asarray([] if times is None else times, dtype=float)
+    n = times.size // 2
+    if n == 0:
+        return []
+    times = times.reshape(2, n)
+
+    def texts(name):
+        values = _param(params, "EVENT", name)
+        values = [] if values is None else [str(v).strip() for v in values]
+        return values + [""] * (n - len(values))
+
+    labels, contexts, subjects, descriptions = (texts(k) for k in ("LABELS", "CONTEXTS", "SUBJECTS", "DESCRIPTIONS"))
+    return [{"subject": subjects[k], "context": contexts[k], "name": labels[k],
+             "time_s": float(60.0 * times[0, k] + times[1, k]), "description": descriptions[k]}
+            for k in range(n) if np.isfinite(times[:, k]).all()]
 
 
 def write_c3d(path, marker_names, positions, rate_hz, first_frame=1):

@@ -8,11 +8,12 @@ reconstruction reads every format alike (``reconstruct_marker_file``).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["MarkerFile", "METRES_PER_UNIT", "metres_per_unit"]
+__all__ = ["MarkerFile", "METRES_PER_UNIT", "metres_per_unit", "event_frame", "between_events"]
 
 METRES_PER_UNIT = {"mm": 1e-3, "cm": 1e-2, "dm": 1e-1, "m": 1.0, "millimeters": 1e-3, "meters": 1.0}
 # A day at 10 kHz: beyond, a frame index is nonsense (and an int64 product overflows).
@@ -51,6 +52,10 @@ class MarkerFile:
         analog data the file also holds (empty lists and 0 if none).
     info : dict
         Anything else worth showing (manufacturer, software, header fields).
+    events : list of dict
+        Labelled times the file holds (a VICON CSV's Events section, a C3D's
+        EVENT group): ``name``, ``context``, ``subject``, ``time_s`` (s from
+        the capture's start, where frame 1 is 0 s), ``description``.
     """
 
     path: str
@@ -62,6 +67,7 @@ class MarkerFile:
     units: str = "mm"
     analog: dict = field(default_factory=lambda: {"channels": [], "rate_hz": 0.0, "units": [], "frames": 0})
     info: dict = field(default_factory=dict)
+    events: list = field(default_factory=list)
 
     @property
     def frames(self):
@@ -75,7 +81,7 @@ class MarkerFile:
                 "units": self.units, "markers": list(self.names),
                 "seen_fraction": {n: float(seen[:, k].mean()) if self.frames else 0.0
                                   for k, n in enumerate(self.names)},
-                "analog": dict(self.analog), "info": dict(self.info)}
+                "analog": dict(self.analog), "info": dict(self.info), "events": [dict(e) for e in self.events]}
 
 
 MARKER_FILE_EXTENSIONS = (".csv", ".c3d", ".trc")
@@ -140,4 +146,63 @@ def read_marker_file(path):
     full = np.full((frame_span(path, frame),) + positions.shape[1:], np.nan)
     full[frame - frame[0]] = positions
     return MarkerFile(path=path, format="vicon_csv", names=names, positions=full,
-                      rate_hz=float(export.trajectories.rate_hz), first_frame=int(frame[0]))
+                      rate_hz=float(export.trajectories.rate_hz), first_frame=int(frame[0]),
+                      events=[dict(e) for e in export.events])
+
+
+def event_frame(markers, time_s):
+    """The row of ``markers.positions`` at an event's time (s from the capture's start).
+
+    Nexus and C3D count frames from 1 at 0 s, so frame ``1 + round(t rate)``;
+    a file that starts later (``first_frame`` > 1) is offset by that.
+    """
+    return int(round(time_s * markers.rate_hz)) + 1 - markers.first_frame
+
+
+def _find_event(markers, label, after=None):
+    """The first event named ``label`` (``NAME`` or ``CONTEXT:NAME``) at or after row ``after``."""
+    for event in sorted(markers.events, key=lambda e: e["time_s"]):
+        names = {event["name"], f"{event['context']}:{event['name']}"}
+        if label in names and (after is None or event_frame(markers, event["time_s"]) > after):
+            return event
+    held = sorted({(f"{e['context']}:" if e["context"] else "") + e["name"] for e in markers.events})
+    what = "after the start event" if after is not None else "in the file"
+    raise ValueError(f"{markers.path}: no event '{label}' {what} (events: {', '.join(held) or 'none'})")
+
+
+def between_events(markers, start, end):
+    """The trial cut from one labelled event to the next: frames from ``start`` to ``end``, both kept.
+
+    Parameters
+    ----------
+    markers : MarkerFile
+    start, end : str
+        Event labels, ``NAME`` or ``CONTEXT:NAME`` (``"General:Dig Start"``);
+        the first ``start`` in the file, then the first ``end`` after it.
+
+    Returns
+    -------
+    MarkerFile
+        A new record (``markers`` is not modified) whose first row is the
+        start event's frame; ``info["cut"]`` says which events and frames.
+
+    Raises
+    ------
+    ValueError
+        One line starting with the path: an event not in the file (the
+        file's events named), or one outside its frames.
+    """
+    first = _find_event(markers, start)
+    i0 = event_frame(markers, first["time_s"])
+    last = _find_event(markers, end, after=i0)
+    i1 = event_frame(markers, last["time_s"])
+    for event, row in ((first, i0), (last, i1)):
+        if not 0 <= row < markers.frames:
+            raise ValueError(f"{markers.path}: event '{event['name']}' at {event['time_s']:g} s is frame "
+                             f"{row + markers.first_frame}, outside the file's frames {markers.first_frame}-"
+                             f"{markers.first_frame + markers.frames - 1}")
+    cut = {"start": start, "end": end, "start_s": first["time_s"], "end_s": last["time_s"],
+           "frames": [i0 + markers.first_frame, i1 + markers.first_frame]}
+    return dataclasses.replace(markers, positions=markers.positions[i0:i1 + 1].copy(),
+                               first_frame=markers.first_frame + i0, info={**markers.info, "cut": cut},
+                               events=[dict(e) for e in markers.events])

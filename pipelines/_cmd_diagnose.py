@@ -8,8 +8,12 @@ import time
 from dragline.compare.diagnose import candidate_list, diagnose_path, write_diagnosis_json, write_diagnosis_report
 
 from ._guard import guard_outputs, session_inputs
+from dragline.capture import resolve_recording
+
 from ._options import (
+    add_between_option,
     add_scheduler_option,
+    between_from_args,
     check_output_path,
     discretization_from_args,
     executor_from_args,
@@ -40,6 +44,7 @@ def add_parser(sub):
                    help="mechanisms to try (default: every mechanism the simulator has)")
     p.add_argument("--workers", type=number(integer=True, maximum=256), default=2, metavar="N",
                    help="simulation processes (default 2)")
+    add_between_option(p)
     add_scheduler_option(p)
     p.add_argument("--seed", type=number("nonnegative", integer=True, maximum=2**32 - 1), default=0, metavar="N",
                    help="seeds the null test's surrogates (default 0)")
@@ -60,13 +65,14 @@ def run(args):
     if args.candidates:
         names = [n.strip() for n in args.candidates.split(",") if n.strip()]
         candidate_list(names)  # unknown names: exit 2 before any work
+    between = between_from_args(args, resolve_recording(args.input, tables=True).kind) if args.between else None
     rig = rig_from_args(args)
     discretization = discretization_from_args(args, rig)
     say = (lambda msg: None) if args.quiet else (lambda msg: print(f"dragline: {msg}", file=sys.stderr))
     t0 = time.perf_counter()
     result = diagnose_path(args.input, maneuver=args.maneuver, rig=rig, calibration=args.calibration,
                            discretization=discretization, candidates=names, workers=executor_from_args(args),
-                           seed=args.seed, progress=say)
+                           seed=args.seed, progress=say, between=between)
     write_diagnosis_json(args.json, result.doc)
     if args.report:
         write_diagnosis_report(args.report, result)

@@ -210,8 +210,7 @@ def _vicon_text(s):
         rate = "-" if sec["rate_hz"] is None else f"{sec['rate_hz']:g}"
         lines.append(f"  {sec['name']:<16} {rate:>8} {sec['rows']:>7} {sec['frames']:>7} {span:>12} "
                      f"{sec['columns']:>8}  {', '.join(sec['units'] or []) or '-'}")
-    for e in s.get("events", []):
-        lines.append(f"  event {e['time_s']:g} s: {' '.join(x for x in (e['subject'], e['context'], e['name']) if x)}")
+    lines += _event_lines(s.get("events", []))
     for note in s.get("notes", []):
         lines.append(f"  note: {note}")
     t = s["trajectories"]
@@ -231,6 +230,12 @@ def _vicon_text(s):
     return lines
 
 
+def _event_lines(events):
+    """One line an event, labelled as ``--between`` takes it (CONTEXT:NAME)."""
+    return [f"  event {e['time_s']:g} s: {e['context'] + ':' if e['context'] else ''}{e['name']}"
+            + (f" (subject {e['subject']})" if e["subject"] else "") for e in events]
+
+
 def _marker_file_text(s):
     fmt = {"c3d": "C3D", "trc": "TRC"}[s["format"]]
     lines = [f"{s['path']}: {fmt}, {len(s['markers'])} markers, {s['frames']} frames at {s['rate_hz']:g} Hz "
@@ -238,6 +243,7 @@ def _marker_file_text(s):
              f"units {s['units']}"]
     for k, v in s["info"].items():
         lines.append(f"  {k}: {v}")
+    lines += _event_lines(s.get("events", []))
     groups = {}
     for m in s["markers"]:
         subject, _, marker = m.rpartition(":")

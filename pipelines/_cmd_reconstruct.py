@@ -30,7 +30,7 @@ from dragline.reconstruct import (
 from dragline.simulate import write_trajectory_csv
 
 from ._guard import guard_outputs, session_inputs
-from ._options import check_output_path, number, rig_from_args
+from ._options import add_between_option, between_from_args, check_output_path, number, rig_from_args
 
 
 def add_parser(sub):
@@ -61,6 +61,7 @@ def add_parser(sub):
                         "outlier before gap filling (default 20; 0 keeps every sample)")
     p.add_argument("--max-reprojection-px", type=number(maximum=1e4), default=3.0, metavar="PX",
                    help="views reprojecting worse than this are rejected as outliers (default 3)")
+    add_between_option(p)
     p.add_argument("--summary-json", metavar="FILE", help="write the reconstruction summary (gap counts, ...) as JSON")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
 
@@ -93,6 +94,7 @@ def run(args):
     guard_outputs([*session_inputs(args.input, extra=("cameras.json",)), args.calibration, args.rig], files=outputs)
     recording = resolve_recording(args.input)
     kind, path, session_dir = recording.kind, recording.file, recording.directory
+    between = between_from_args(args, kind)
     rig = rig_from_args(args)
     options = dict(rig=rig, method=args.method, smoothing=args.smoothing, max_gap=args.max_gap,
                    max_deviation=args.outlier_mm * 1e-3 if args.outlier_mm > 0 else None)
@@ -104,7 +106,11 @@ def run(args):
                              "marker file)")
         if args.calibration:
             notes.append("--calibration ignored: a marker file is already three-dimensional")
-        table, summary = reconstruct_marker_file(path, **options)
+        table, summary = reconstruct_marker_file(path, between=between, **options)
+        if between:
+            cut = summary["cut"]
+            notes.append(f"kept frames {cut['frames'][0]}-{cut['frames'][1]}, from event '{cut['start']}' at "
+                         f"{cut['start_s']:g} s to '{cut['end']}' at {cut['end_s']:g} s")
     else:
         from dragline.capture import read_session  # noqa: PLC0415
 

@@ -105,6 +105,22 @@ def check_output_path(path):
         raise ValueError(f"output {path} is a directory")
 
 
+def add_between_option(parser):
+    parser.add_argument("--between", nargs=2, metavar=("START", "END"),
+                        help="a marker file only: keep the trial from its event START to the first END after it "
+                             "(labels as NAME or CONTEXT:NAME; 'dragline inspect' lists a file's events); time 0 "
+                             "is then the start event")
+
+
+def between_from_args(args, kind):
+    """The ``--between`` pair, refused for an input that holds no labelled events."""
+    between = getattr(args, "between", None)
+    if between is not None and kind != "markers":
+        raise ValueError("--between cuts a marker file (VICON CSV, C3D, TRC) at its events; "
+                         f"{args.input} is not one")
+    return tuple(between) if between else None
+
+
 def add_scheduler_option(parser):
     """``--scheduler ADDRESS``: run the simulations on a Dask cluster (docs/interfaces.md)."""
     parser.add_argument("--scheduler", metavar="ADDRESS",

@@ -60,7 +60,7 @@ import numpy as np
 import pandas as pd
 from numpy.lib.stride_tricks import sliding_window_view
 
-from ..capture import read_marker_file, read_session
+from ..capture import between_events, read_marker_file, read_session
 from ..simulate import (
     ROPE_CHANNELS,
     euler_from_matrix,
@@ -630,19 +630,22 @@ def reconstruct_vicon_csv(path, rig=None, method="paper", smoothing="running_ave
 
 
 def reconstruct_marker_file(path, rig=None, method="paper", smoothing="running_average", max_gap=10,
-                            max_deviation=0.02):
+                            max_deviation=0.02, between=None):
     """Trajectory table from labelled 3D markers: a VICON-style CSV, a C3D or a TRC file.
 
     The format is told by the extension (``.csv``, ``.c3d``, ``.trc``);
     lengths come from the file's units; a marker not seen (C3D: negative
-    residual; TRC: empty cells) is a gap. Options as for
-    ``trajectory_from_markers``.
+    residual; TRC: empty cells) is a gap. ``between`` = ``(START, END)``
+    event labels cuts the trial to the frames from one event to the other
+    (``capture.between_events``): time 0 of the table is the start event.
+    Other options as for ``trajectory_from_markers``.
 
     Returns
     -------
     table : pandas.DataFrame
     summary : dict
-        As for ``trajectory_from_markers``, plus ``path`` and ``format``.
+        As for ``trajectory_from_markers``, plus ``path``, ``format`` and,
+        with ``between``, ``cut`` (the events and frames kept).
 
     Raises
     ------
@@ -653,6 +656,8 @@ def reconstruct_marker_file(path, rig=None, method="paper", smoothing="running_a
 
     path = os.fspath(path)
     markers = read_marker_file(path)
+    if between is not None:
+        markers = between_events(markers, *between)
     try:
         table, summary = trajectory_from_markers(markers.names, markers.positions, markers.rate_hz, rig,
                                                  method, smoothing, max_gap, max_deviation=max_deviation)
@@ -660,4 +665,6 @@ def reconstruct_marker_file(path, rig=None, method="paper", smoothing="running_a
         raise ValueError(f"{path}: {exc}") from None
     summary["path"] = path
     summary["format"] = markers.format
+    if between is not None:
+        summary["cut"] = markers.info["cut"]
     return table, summary

@@ -193,7 +193,7 @@ def _session_maneuver(session, path):
     return Maneuver(cols["time"], cols["hoist_length"], cols["drag_length"], points)
 
 
-def load_recording(path, maneuver=None, rig=None, calibration=None, progress=None):
+def load_recording(path, maneuver=None, rig=None, calibration=None, progress=None, between=None):
     """The measured trajectory table and the maneuver of a recording.
 
     Parameters
@@ -214,6 +214,9 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
         L-frame and wand takes.
     progress : callable, optional
         Receives one-line notes.
+    between : (str, str), optional
+        A marker file's start and end event labels: the trial between them
+        (``reconstruct_marker_file``); ``source["cut"]`` says what was kept.
 
     Returns
     -------
@@ -258,7 +261,9 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
     elif kind == "markers":
         from ...reconstruct import reconstruct_marker_file
 
-        table, _ = reconstruct_marker_file(file, rig=rig)
+        table, summary = reconstruct_marker_file(file, rig=rig, between=between)
+        if between is not None:
+            source["cut"] = summary["cut"]
     else:
         table = read_trajectory_table(file, "measured")
     if maneuver is None:
@@ -949,11 +954,11 @@ def _significant_updates(update, min_shift=2.0, most=4):
 
 
 def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretization="baseline", candidates=None,
-                  workers=2, seed=0, progress=None):
+                  workers=2, seed=0, progress=None, between=None):
     """:func:`load_recording` then :func:`diagnose`: what ``dragline diagnose`` runs."""
     started = _time.perf_counter()
     rig = load_rig() if rig is None else rig
-    table, man, source = load_recording(path, maneuver, rig, calibration, progress)
+    table, man, source = load_recording(path, maneuver, rig, calibration, progress, between)
     loaded = _time.perf_counter() - started
     try:
         result = diagnose(table, man, rig, discretization, candidates, workers, seed, source, progress)
