@@ -65,7 +65,9 @@ def run(args):
     if args.candidates:
         names = [n.strip() for n in args.candidates.split(",") if n.strip()]
         candidate_list(names)  # unknown names: exit 2 before any work
-    between = between_from_args(args, resolve_recording(args.input, tables=True).kind) if args.between else None
+    between = None
+    if args.between:
+        between = between_from_args(args, resolve_recording(args.input, tables=True).kind, args.input)
     rig = rig_from_args(args)
     discretization = discretization_from_args(args, rig)
     say = (lambda msg: None) if args.quiet else (lambda msg: print(f"dragline: {msg}", file=sys.stderr))

@@ -94,7 +94,7 @@ def run(args):
     guard_outputs([*session_inputs(args.input, extra=("cameras.json",)), args.calibration, args.rig], files=outputs)
     recording = resolve_recording(args.input)
     kind, path, session_dir = recording.kind, recording.file, recording.directory
-    between = between_from_args(args, kind)
+    between = between_from_args(args, kind, args.input)
     rig = rig_from_args(args)
     options = dict(rig=rig, method=args.method, smoothing=args.smoothing, max_gap=args.max_gap,
                    max_deviation=args.outlier_mm * 1e-3 if args.outlier_mm > 0 else None)

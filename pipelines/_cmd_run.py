@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from dragline.capture import json_text
+from dragline.capture import json_text, resolve_recording
 
-from ._options import number
+from ._options import add_between_option, between_from_args, number
 
 
 def add_parser(sub):
@@ -18,6 +18,7 @@ def add_parser(sub):
     p.add_argument("--config", metavar="FILE.toml", help="stage options (see the README's Configuration)")
     p.add_argument("--seed", type=number("nonnegative", integer=True, maximum=2**32 - 1), default=None,
                    help="seed of the built-in session (default 0)")
+    add_between_option(p)
     p.add_argument("--no-study", action="store_true", help="skip the discretization study (Fig. 21)")
     p.add_argument("--no-diagnose", action="store_true", help="skip the missing-physics diagnosis")
     p.add_argument("--verbose", action="store_true", help="print each stage's time as it ends")
@@ -32,6 +33,10 @@ def run(args):
     from ._run import DEFAULTS, read_config, run_pipeline
 
     config = read_config(args.config) if getattr(args, "config", None) else {k: dict(v) for k, v in DEFAULTS.items()}
+    between = None
+    if args.between:
+        kind = resolve_recording(args.source).kind if args.source else "session"
+        between = between_from_args(args, kind, args.source or "the built-in session")
     maneuver = None
     if args.maneuver:
         maneuver = dig_maneuver() if args.maneuver == "dig" else read_maneuver_csv(args.maneuver)
@@ -40,7 +45,7 @@ def run(args):
     config["run"]["diagnose"] = config["run"]["diagnose"] and not getattr(args, "no_diagnose", False)
     summary = run_pipeline(args.source, args.out, seed=seed, maneuver=maneuver, study=study, quiet=args.quiet,
                            force=args.force, config=config, verbose=getattr(args, "verbose", False),
-                           inputs=(getattr(args, "config", None), args.maneuver))
+                           inputs=(getattr(args, "config", None), args.maneuver), between=between)
     if args.json:
         print(json_text(summary, indent=2))
         return 0

@@ -112,12 +112,11 @@ def add_between_option(parser):
                              "is then the start event")
 
 
-def between_from_args(args, kind):
-    """The ``--between`` pair, refused for an input that holds no labelled events."""
+def between_from_args(args, kind, source):
+    """The ``--between`` pair, refused when ``source`` (of ``kind``) is no marker file with events."""
     between = getattr(args, "between", None)
     if between is not None and kind != "markers":
-        raise ValueError("--between cuts a marker file (VICON CSV, C3D, TRC) at its events; "
-                         f"{args.input} is not one")
+        raise ValueError(f"--between cuts a marker file (VICON CSV, C3D, TRC) at its events; {source} is not one")
     return tuple(between) if between else None
 
 

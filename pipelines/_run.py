@@ -92,7 +92,7 @@ class _Stages:
 
 
 def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False, force=False, config=None,
-                 verbose=False, inputs=()):
+                 verbose=False, inputs=(), between=None):
     """Run every stage and write the outputs into ``out_dir``.
 
     Parameters
@@ -114,6 +114,9 @@ def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False
     inputs : tuple of str
         Other files the caller read (a config file, a maneuver CSV): the
         output directory must neither be one nor hold one.
+    between : (str, str), optional
+        A marker file's start and end event labels: the trial between them
+        (``reconstruct_marker_file``).
 
     Returns
     -------
@@ -147,7 +150,7 @@ def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False
     config = config or {section: dict(values) for section, values in DEFAULTS.items()}
     stages = _Stages(quiet, verbose)
     try:
-        summary = _run_into(source, tmp, seed, maneuver, study, stages, config)
+        summary = _run_into(source, tmp, seed, maneuver, study, stages, config, between)
         mark_output(tmp, "run")
         if out.exists():
             shutil.rmtree(out)
@@ -159,7 +162,7 @@ def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False
     return summary
 
 
-def _run_into(source, tmp, seed, maneuver, study, stage, config):
+def _run_into(source, tmp, seed, maneuver, study, stage, config, between=None):
     from dragline.capture import (
         calibrate,
         read_session,
@@ -190,7 +193,8 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config):
         files["truth"] = str(tmp / "truth")
     elif (recording := resolve_recording(source)).kind == "markers":
         maneuver = maneuver or dig_maneuver()
-        measured, _ = stage("reconstruct the marker file", reconstruct_marker_file, recording.file, rig, **options)
+        measured, _ = stage("reconstruct the marker file", reconstruct_marker_file, recording.file, rig,
+                            between=between, **options)
         session = None
     else:
         path = recording.file

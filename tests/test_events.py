@@ -143,3 +143,20 @@ def test_inspect_lists_the_events_as_between_takes_them(recording, capsys):
         # the CSV names each event's subject; this C3D was written without EVENT:SUBJECTS
         expected = "event 0.1 s: General:Dig Start" + (" (subject Rig)" if name.endswith(".csv") else "\n")
         assert expected in out, out
+
+
+def test_run_between_cuts_the_marker_file_it_reconstructs(recording, tmp_path, capsys):
+    root, _, _ = recording
+    out = tmp_path / "run"
+    assert main(["run", str(root / "with_events.csv"), "--between", "Dig Start", "Dump", "--no-study",
+                 "--no-diagnose", "--quiet", "--out", str(out)]) == 0
+    measured = pd.read_csv(out / "measured.csv")
+    cut, _ = reconstruct_marker_file(root / "with_events.csv", between=("Dig Start", "Dump"))
+    assert len(measured) == 101
+    np.testing.assert_allclose(measured.to_numpy(float), cut.to_numpy(float), atol=1e-9, equal_nan=True)
+    capsys.readouterr()
+    # the built-in session holds no events: refused before anything is made
+    assert main(["run", "--between", "A", "B", "--out", str(tmp_path / "builtin")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the built-in session is not one" in err[0]
+    assert not (tmp_path / "builtin").exists()
