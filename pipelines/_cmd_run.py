@@ -34,7 +34,7 @@ def run(args):
 
     config = read_config(args.config) if getattr(args, "config", None) else {k: dict(v) for k, v in DEFAULTS.items()}
     between = None
-    if args.between:
+    if getattr(args, "between", None):
         kind = resolve_recording(args.source).kind if args.source else "session"
         between = between_from_args(args, kind, args.source or "the built-in session")
     maneuver = None
