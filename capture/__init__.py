@@ -11,8 +11,9 @@
   folder dragline wrote)
 - other labs' files: C3D (``read_c3d``, ``write_c3d``, ``is_c3d``), TRC
   (``read_trc``, ``write_trc``, ``is_trc``), any of them by extension
-  (``read_marker_file``, ``MARKER_FILE_EXTENSIONS``), a trial cut between two
-  of a file's labelled events (``between_events``, ``event_frame``)
+  (``read_marker_file``, ``MARKER_FILE_EXTENSIONS``) into one record
+  (``MarkerFile``), and a trial cut between two of a file's labelled events
+  (``between_events``, ``event_frame``)
 - helpers every stage uses: strict JSON (``json_text``, ``json_ready``,
   ``write_json``) and schema messages (``describe_validation_error``,
   ``fields_markdown``, ``key_text``, ``short_repr``)
