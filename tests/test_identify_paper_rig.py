@@ -92,7 +92,7 @@ def test_the_committed_identified_rig_meets_the_papers_numbers_it_was_fitted_to(
     table = simulate(rig, man, duration=8.5).table
     assert table["bucket.z"].iloc[0] == pytest.approx(-1.2, abs=0.03)
     assert np.degrees(table["bucket.pitch"].iloc[0]) == pytest.approx(-52.0, abs=3.0)
-    assert ip._pose(rig, 10.1, 1.4)[0] == pytest.approx(-0.70, abs=0.03)
+    assert ip._rest_height(rig, 10.1, 1.4) == pytest.approx(-0.70, abs=0.03)
     for channel, (value, time_s), time_ok in (("bucket.vx", (1.01, 5.95), True), ("bucket.vz", (0.91, 6.27), True),
                                               ("bucket.q", (3.2, 6.77), False)):
         k = int(np.argmax(np.abs(table[channel].to_numpy())))

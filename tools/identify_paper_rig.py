@@ -138,12 +138,12 @@ def dig_maneuver_at(phase1_s, phase3_drag_m_s, ramp_s, hold_s=4.0, step_s=0.005)
     lengths = []
     for column, start in ((1, START_POSE["hoist"]), (2, START_POSE["drag"])):
         at_edges = start + np.concatenate([[0.0], np.cumsum([p[0] * p[column] for p in phases])])
-        length = np.interp(time_s, edges, at_edges)  # exact: constant speed within a phase
         if ramp_s > 0:
             # Each change of speed spread over ramp_s: the moving average of the length over the last
             # ramp_s (the length before the start held), so the start and end lengths are kept.
-            length = (_integral(time_s, edges, at_edges) - _integral(time_s - ramp_s, edges, at_edges)) / ramp_s
-        lengths.append(length)
+            lengths.append((_integral(time_s, edges, at_edges) - _integral(time_s - ramp_s, edges, at_edges)) / ramp_s)
+        else:
+            lengths.append(np.interp(time_s, edges, at_edges))  # exact: constant speed within a phase
     return Maneuver(time_s, lengths[0], lengths[1]), drag4
 
 
@@ -156,9 +156,10 @@ def _integral(t, knots, values):
     return at_knots[i] + (t - knots[i]) * 0.5 * (values[i] + np.interp(t, knots, values))
 
 
-def _pose(rig, hoist, drag):
+def _rest_height(rig, hoist, drag):
+    """The bucket mass centre's z (m) at rest with these reel lengths."""
     table = simulate(rig, Maneuver([0.0, 1.0], [hoist, hoist], [drag, drag]), duration=0.005, rate_hz=200.0).table
-    return float(table["bucket.z"].iloc[0]), float(np.degrees(table["bucket.pitch"].iloc[0]))
+    return float(table["bucket.z"].iloc[0])
 
 
 def figures(values, document, duration=8.5):
@@ -170,7 +171,7 @@ def figures(values, document, duration=8.5):
     try:
         rig = rig_at(values, document)
         table = simulate(rig, man, duration=duration, rate_hz=200.0).table
-        end_z, _ = _pose(rig, END_POSE["hoist"], END_POSE["drag"])
+        end_z = _rest_height(rig, END_POSE["hoist"], END_POSE["drag"])
     except (SimulationError, StaticsError, ValueError):
         return None
     out = {"start_z": float(table["bucket.z"].iloc[0]), "start_pitch_deg": float(np.degrees(table["bucket.pitch"].iloc[0])),
