@@ -9,9 +9,9 @@
    translation scaled so the wand triangulates to its known length.
 3. The pairs are chained into one rig along a maximum spanning tree of
    shared wand frames (root: the best-connected camera).
-4. Sparse bundle adjustment (``scipy.optimize.least_squares``, trust-region
-   reflective, LSMR steps, a finite-difference Jacobian grouped by its
-   sparsity pattern, soft-L1 loss) over every camera's pose (the root's
+4. Sparse bundle adjustment (``_bundle``: Levenberg-Marquardt whose steps
+   solve the sparse normal equations directly, a finite-difference Jacobian
+   grouped by its sparsity pattern, soft-L1 loss) over every camera's pose (the root's
    fixes the gauge), focal length (square pixels), principal point and
    distortion ``k1, k2, p1, p2`` (``k3`` stays 0), every wand frame (centre
    and direction; the marker separation is held at ``wand_length``, which
@@ -37,12 +37,12 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import minimum_spanning_tree
 from scipy.spatial.transform import Rotation
 from threadpoolctl import threadpool_limits
 
+from ._bundle import levenberg_marquardt
 from ._cameras import Camera
 
 __all__ = ["calibrate", "triangulate_views", "MIN_WAND_FRAMES", "MIN_CAMERA_FRAMES"]
@@ -60,8 +60,7 @@ _EPIPOLAR_PX = 8.0  # epipolar misfit (px) above which a camera pair disagrees (
 _MAX_RMS_PX = 3.0  # a converged calibration of sane takes is far below this
 _SCALE_TOL = 0.01  # wand and L-frame scale may differ by this fraction (L-frame: ~1e-4)
 _FIRST_FRAMES = 300  # wand frames in the first adjustment
-_LSMR_TOL = 1e-10
-_MAX_NFEV = 100
+_MAX_ITER = 100
 _FTOL = 1e-8
 
 
@@ -471,17 +470,11 @@ def _even(n, most):
 
 
 def _adjust(problem, x0, f_scale):
-    # LSMR's default tolerances stop the inner solve early; the adjustment is
-    # ill-conditioned (focal length against distance), so inexact steps
-    # crawl. Tight tolerances converge in a few outer steps.
-    # LSMR makes thousands of dot products of vectors with 1e4-1e5 entries; OpenBLAS hands them to
-    # its threads, and on a loaded machine each hand-off waits for a core (measured 15x slower).
+    # A loaded machine hands BLAS work to threads that wait for a core (LSMR's dot products, before,
+    # ran 15x slower that way): one thread.
     with threadpool_limits(1, user_api="blas"):
-        return least_squares(problem.residuals, x0, jac_sparsity=problem.sparsity(),
-                             method="trf",
-                             tr_solver="lsmr", tr_options={"atol": _LSMR_TOL, "btol": _LSMR_TOL},
-                             loss="soft_l1", f_scale=f_scale, x_scale="jac",
-                             ftol=_FTOL, xtol=1e-10, gtol=1e-10, max_nfev=_MAX_NFEV)
+        return levenberg_marquardt(problem.residuals, x0, problem.sparsity(), f_scale, ftol=_FTOL, xtol=1e-10,
+                                   max_iter=_MAX_ITER)
 
 
 # ------------------------------------------------------------------ the API

@@ -1,0 +1,171 @@
+"""Sparse Levenberg-Marquardt for the bundle adjustment, with a soft-L1 loss.
+
+The adjustment's normal matrix has a known shape: a dense block for the
+cameras and the L-frame (under a hundred unknowns), one 5 x 5 block per wand
+frame, and the coupling between them. scipy's trust-region solver with
+LSMR steps cannot use that shape: the problem is ill-conditioned (focal
+length against distance), so each step took about 900 LSMR iterations and
+the calibration of a 600-frame session 4.9 s. Here each step solves the
+damped normal equations directly (a sparse LU factorisation, whose fill
+stays in the camera block), a few milliseconds.
+
+- Jacobian: forward differences, the columns that share no residual moved
+  together (greedy colouring of the sparsity pattern: about twenty
+  residual evaluations for two thousand unknowns).
+- Loss: soft-L1, ``rho(z) = 2 (sqrt(1 + z) - 1)`` of ``z = (r / f_scale)^2``,
+  as scipy's ``least_squares(loss="soft_l1")``; minimised by iteratively
+  reweighted Gauss-Newton (weights ``rho'(z)``), whose fixed point is the
+  robust cost's stationary point.
+- Damping: Marquardt's (the normal matrix's diagonal), the multiplier
+  divided by 3 after a step that lowers the cost and multiplied by 4 after
+  one that does not (Nielsen's rule without its gain ratio).
+- Stops when a step lowers the cost by less than ``ftol`` of it, moves x by
+  less than ``xtol`` (relative), or after ``max_iter`` Jacobians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import csc_matrix, diags
+from scipy.sparse.linalg import spsolve
+
+__all__ = ["BundleResult", "column_groups", "sparse_jacobian", "levenberg_marquardt"]
+
+_EPS = np.finfo(float).eps
+# The damping multiplier's range: below, Gauss-Newton; above, the step is nil.
+_LAMBDA_MIN, _LAMBDA_MAX = 1e-12, 1e12
+
+
+@dataclass
+class BundleResult:
+    """``x``: the solution; ``cost``: its robust cost; ``njev``, ``nfev``: Jacobians and residual evaluations."""
+
+    x: np.ndarray
+    cost: float
+    njev: int
+    nfev: int
+
+
+def column_groups(sparsity):
+    """Colour the columns so that no two of one colour share a row.
+
+    Parameters
+    ----------
+    sparsity : scipy.sparse matrix (m, n)
+        Nonzero where a residual depends on an unknown.
+
+    Returns
+    -------
+    ndarray (n,) of int
+        Each column's group; a residual evaluation per group gives a Jacobian.
+    """
+    S = csc_matrix(sparsity)
+    m, n = S.shape
+    taken = []  # per group: rows some column of it touches
+    group = np.empty(n, dtype=int)
+    for j in range(n):
+        rows = S.indices[S.indptr[j]:S.indptr[j + 1]]
+        for g, used in enumerate(taken):
+            if not used[rows].any():
+                break
+        else:
+            g = len(taken)
+            taken.append(np.zeros(m, dtype=bool))
+        taken[g][rows] = True
+        group[j] = g
+    return group
+
+
+def sparse_jacobian(fun, x, f0, sparsity, groups):
+    """Forward-difference Jacobian on the sparsity pattern, one residual evaluation per column group.
+
+    Parameters
+    ----------
+    fun : callable
+        Residuals, (m,) from x (n,).
+    x, f0 : ndarray
+        Where, and ``fun(x)``.
+    sparsity : scipy.sparse matrix (m, n)
+    groups : ndarray (n,)
+        From :func:`column_groups`.
+
+    Returns
+    -------
+    scipy.sparse.csc_matrix (m, n)
+    """
+    S = csc_matrix(sparsity)
+    S.sort_indices()
+    h = np.sqrt(_EPS) * np.maximum(1.0, np.abs(x))
+    cols = np.repeat(np.arange(S.shape[1]), np.diff(S.indptr))
+    data = np.empty(S.indices.size)
+    for g in range(int(groups.max()) + 1 if groups.size else 0):
+        moved = groups == g
+        xp = x.copy()
+        xp[moved] += h[moved]
+        step = xp - x  # the step actually taken, after rounding
+        diff = fun(xp) - f0
+        here = moved[cols]
+        data[here] = diff[S.indices[here]] / step[cols[here]]
+    return csc_matrix((data, S.indices, S.indptr), shape=S.shape)
+
+
+def _soft_l1_cost(f, f_scale):
+    z = (f / f_scale) ** 2
+    return float(f_scale**2 * np.sum(np.sqrt(1.0 + z) - 1.0))  # 0.5 f_scale^2 sum rho(z)
+
+
+def levenberg_marquardt(fun, x0, sparsity, f_scale, ftol=1e-8, xtol=1e-10, max_iter=100):
+    """Minimise the soft-L1 cost of ``fun``'s residuals by damped, reweighted Gauss-Newton.
+
+    Parameters
+    ----------
+    fun : callable
+        Residuals (m,) of the unknowns (n,).
+    x0 : ndarray (n,)
+    sparsity : scipy.sparse matrix (m, n)
+        Which residuals each unknown moves.
+    f_scale : float
+        The loss's soft margin, in the residuals' unit (px).
+    ftol, xtol : float
+        Relative decrease of the cost, and relative step, below which it stops.
+    max_iter : int
+        Most Jacobians.
+
+    Returns
+    -------
+    BundleResult
+    """
+    groups = column_groups(sparsity)
+    x = np.asarray(x0, float).copy()
+    f = fun(x)
+    cost = _soft_l1_cost(f, f_scale)
+    nfev, njev, lam = 1, 0, 1e-3
+    while njev < max_iter:
+        J = sparse_jacobian(fun, x, f, sparsity, groups)
+        nfev += int(groups.max()) + 1
+        njev += 1
+        w = 1.0 / np.sqrt(1.0 + (f / f_scale) ** 2)
+        Jw = diags(w) @ J
+        A = (J.T @ Jw).tocsc()
+        g = Jw.T @ f
+        d = np.maximum(A.diagonal(), 1e-12 * max(A.diagonal().max(), 1.0))
+        while True:
+            dx = spsolve(A + diags(lam * d, format="csc"), -g)
+            x_new = x + dx
+            f_new = fun(x_new)
+            nfev += 1
+            cost_new = _soft_l1_cost(f_new, f_scale) if np.all(np.isfinite(f_new)) else np.inf
+            if cost_new < cost:
+                lam = max(lam / 3.0, _LAMBDA_MIN)
+                break
+            lam *= 4.0
+            if lam > _LAMBDA_MAX:
+                return BundleResult(x, cost, njev, nfev)
+        gain = cost - cost_new
+        small_step = np.linalg.norm(dx) < xtol * (xtol + np.linalg.norm(x))
+        x, f, cost = x_new, f_new, cost_new
+        if gain < ftol * (cost + gain) or small_step:
+            break
+    return BundleResult(x, cost, njev, nfev)
