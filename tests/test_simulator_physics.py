@@ -170,3 +170,13 @@ def test_a_simulation_started_at_equilibrium_stays_there(rig):
     speeds = np.abs(table[[c for c in table.columns if c.endswith((".vx", ".vy", ".vz"))]].to_numpy())
     assert speeds.max() < 1e-6
     assert np.abs(table["bucket.pitch"] - table["bucket.pitch"].iloc[0]).max() < 1e-6
+
+
+def test_the_motion_table_is_the_full_tables_motion_columns(dig_baseline):
+    # The diagnosis reads its hundreds of simulations through the lighter table: the same numbers.
+    from dragline.simulate import trajectory_columns
+
+    motion, full = dig_baseline.motion_table(), dig_baseline.table
+    assert list(motion.columns) == [c for c in trajectory_columns() if c in full.columns]
+    assert motion.equals(full[list(motion.columns)])
+    assert "drag_rope.tension_start" in full and "drag_rope.tension_start" not in motion
