@@ -31,7 +31,6 @@ __all__ = [
 ]
 from ._align import align_tables, estimate_time_offset, read_trajectory_table, reels_stop_time
 from ._compare import compare_tables, discretization_study
-from ._report import write_report
 
 __all__ += [
     "read_trajectory_table",
@@ -50,3 +49,12 @@ from ._executor import DaskExecutor, Executor, ExecutorError, LocalExecutor, as_
 __all__ += ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
             "write_diagnosis_report", "write_results", "DIG_PEAKS",
             "Executor", "LocalExecutor", "DaskExecutor", "ExecutorError", "executor_from", "as_executor"]
+
+
+def __getattr__(name):
+    # The report draws with matplotlib, which costs a diagnosis that writes no PDF 0.4 s to import.
+    if name == "write_report":
+        from ._report import write_report
+
+        return write_report
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -2,7 +2,8 @@
 
 One small interface (``Executor.open(initializer, initargs)`` gives a session
 whose ``map(fn, jobs, each=None)`` returns ``fn(*job)`` for every job, in
-order, handing each result to ``each`` as it comes) serves
+order, handing each result to ``each`` as it comes, and whose ``slots`` says
+how many tasks run at once) serves
 every place that fans out work: the diagnosis's candidate, sensitivity and
 model-error simulations, and the discovery benchmark's cases. What a task
 needs besides its job (the rig, the maneuver, the recording's channels: the
@@ -69,6 +70,8 @@ def _collect(results, each):
 
 
 class _Serial:
+    slots = 1
+
     def __init__(self, initializer, initargs):
         initializer(*initargs)
 
@@ -82,6 +85,7 @@ class _Serial:
 class _LocalPool:
     def __init__(self, workers, initializer, initargs):
         initializer(*initargs)  # the parent evaluates too (the serial parts of a fit)
+        self.slots = workers
         method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
         self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
                                          initializer=initializer, initargs=initargs)
@@ -137,6 +141,12 @@ class _DaskSession:
         # workers holding it are lost, the scheduler runs it again (scattered data would be gone).
         self._initargs = client.submit(_identity, tuple(initargs), pure=False)
         self._key = f"ctx-{id(self)}-{time.monotonic_ns()}"
+
+    @property
+    def slots(self):
+        """Tasks the cluster runs at once now (its workers' threads, at least 1)."""
+        workers = self._client.scheduler_info().get("workers", {})
+        return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
 
     def map(self, fn, jobs, each=None):
         futures = [self._client.submit(_dask_task, self._initializer, self._key, self._initargs, fn, tuple(job),

@@ -56,7 +56,7 @@ from ...simulate import (
     simulate,
 )
 from .._compare import channel_kind
-from ._hypotheses import _init, _pool, channels_on
+from ._hypotheses import _grid_job, _init, _pool, channels_on
 
 __all__ = ["OFFSET_PRIOR", "update_model", "joint_refit", "model_error", "finer_discretization",
            "nuisance_correlation", "mark_model_error"]
@@ -91,6 +91,7 @@ MAX_SHIFT_PRIOR = 0.01  # s
 # exp(+-JOINT_SPAN) of its first fit, in at most JOINT_VALUE_EVALS simulations.
 JOINT_SPAN = 0.4
 JOINT_VALUE_EVALS = 5
+JOINT_XATOL = 0.02  # in ln p
 # Two parameters whose posterior correlation exceeds this are reported as a
 # pair the recording can move only together.
 DEGENERATE = 0.9
@@ -407,7 +408,8 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
         sens, _ = _sensitivities(pool, coords, active, tol, sim, state, list(update["sensitivities"]))
         n_sims += len(active)
         fit = _trust_region(problem, pool, _Fit(coords, sim, state, sens), active, tol, offset_sd, errs,
-                            MAX_JACOBIANS, lambda m: note(f"joint refit with {mechanism.name}: {m}"))
+                            MAX_JACOBIANS, lambda m: note(f"joint refit with {mechanism.name}: {m}"),
+                            final_jacobian=False)
         n_sims += fit.n_sims
     finally:
         pool.close()
@@ -417,20 +419,33 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     value0 = float(mechanism.parameters[main])
     sim_ctx = dict(ctx, rig=rig, maneuver=maneuver, initial_state=state, base_physics=())
     tried = {value0: (fit.objective, fit.sim)}
+    bounds = joint_value_bounds(value0, value_range)
+    # The search's first two points do not depend on what it finds at either: simulated together.
+    first = bounded_brent_start(*bounds, JOINT_XATOL)
+    pool = _pool(workers, sim_ctx, at_most=len(first))
+    try:
+        ahead = {x: s_ for x, (_, _, s_, _) in zip(first, pool.map(
+            _grid_job, [(mechanism.name, main, float(math.exp(x))) for x in first]))}
+    finally:
+        pool.close()
+    n_sims += len(first)
 
     def objective(x):
         nonlocal n_sims
         v = float(math.exp(x))
-        s_ = simulate_channels(mechanism.name, main, v, sim_ctx)
-        n_sims += 1
+        if x in ahead:
+            s_ = ahead.pop(x)
+        else:
+            s_ = simulate_channels(mechanism.name, main, v, sim_ctx)
+            n_sims += 1
         if s_ is None:
             return 1e300
         obj = _objective_at(problem, s_, coords, tol, offset_sd, errs)[0]
         tried[v] = (obj, s_)
         return obj
 
-    minimize_scalar(objective, bounds=joint_value_bounds(value0, value_range), method="bounded",
-                    options={"xatol": 0.02, "maxiter": JOINT_VALUE_EVALS})
+    minimize_scalar(objective, bounds=bounds, method="bounded",
+                    options={"xatol": JOINT_XATOL, "maxiter": JOINT_VALUE_EVALS})
     value = min(tried, key=lambda v: tried[v][0])
     history = fit.history + [{"step": mechanism.name, "value": value, "objective": tried[value][0]}]
     nuisance = _objective_at(problem, tried[value][1], coords, tol, offset_sd, errs)[2]
@@ -438,6 +453,22 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     return {"coords": coords, "mechanism": make_mechanism(mechanism.name, **{main: value}), "sim": tried[value][1],
             "rig": rig, "maneuver": maneuver, "initial_state": state, "n_simulations": n_sims, "history": history,
             "offsets": offsets}
+
+
+def bounded_brent_start(lo, hi, xatol):
+    """The first two points scipy's bounded Brent search (``minimize_scalar(method="bounded")``) evaluates.
+
+    Both are golden-section points of [lo, hi], computed as scipy computes
+    them (so equal to the last bit): the first at the golden fraction, the
+    second a golden fraction of the way from it to ``hi``; only the first
+    when the interval is within ``xatol`` already.
+    """
+    golden = 0.5 * (3.0 - math.sqrt(5.0))
+    x1 = lo + golden * (hi - lo)
+    tol1 = math.sqrt(2.2e-16) * abs(x1) + xatol / 3.0
+    if abs(x1 - 0.5 * (lo + hi)) <= 2.0 * tol1 - 0.5 * (hi - lo):
+        return (x1,)  # an interval within the tolerance: one point, and the search is done
+    return x1, x1 + max(abs(golden * (hi - x1)), tol1)
 
 
 def joint_value_bounds(value, value_range=None, span=JOINT_SPAN):
@@ -465,7 +496,7 @@ class _Fit:
     n_sims: int = 0
 
 
-def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobians, note):
+def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobians, note, final_jacobian=True):
     """Bounded trust-region least squares on the active coordinates from ``fit``.
 
     scipy's ``least_squares`` (``trf``, ``x_scale`` the tolerances, so its
@@ -479,15 +510,34 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
     took full steps from the nominal rig to the bounds (the masses and the
     wire rope's stiffness move the statics together), where it stalled at
     1.3 times the noise on a recording of the model itself.
+
+    A trial point is one simulation, which leaves the pool's other slots
+    idle; they run the first finite differences of the Jacobian at that
+    point meanwhile (statics from the best equilibrium so far, which they
+    reach to 1e-14 m as from the trial's own), so an accepted step needs
+    that many fewer simulations after it and a rejected one costs nothing
+    that would not have idled. ``fit.sim`` is taken as the simulation at
+    ``fit.coords``, not simulated again.
+
+    The stops are applied here, where scipy's would come one Jacobian late
+    (it differentiates at an accepted point before it looks at the gain):
+    at the noise, after ``max_jacobians``, or when an accepted step lowered
+    the objective by less than ``UPDATE_RTOL``. With ``final_jacobian``
+    False (a caller that needs no sensitivities at the end: the joint
+    refit), the Jacobian at the point where it stops is not computed.
     """
     from scipy.optimize import least_squares
 
     k = len(fit.coords)
     base = fit.coords.copy()
     lo, hi = -BOUND_TOLERANCES * tol[active], BOUND_TOLERANCES * tol[active]
-    cache = {}
+    cache = {fit.coords.tobytes(): (fit.sim, fit.state)}
+    ahead = {}  # coords -> {parameter: its finite-difference simulation}, run beside the trial point
+    spare = max(0, int(getattr(pool, "slots", 1)) - 1)
     best = {"objective": math.inf}
     jacobians = [0]
+    objectives = {}
+    stop = {"now": False, "last": None, "J": None}  # the stop decided at an accepted point; its objective; trf's J
 
     def full(xa):
         coords = base.copy()
@@ -499,8 +549,14 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
         key = coords.tobytes()
         if key not in cache:
             guess = best.get("state", fit.state)
-            cache[key] = pool.map(_rig_job, [(coords, None, None, guess)])[0]
-            fit.n_sims += 1
+            # Before the first Jacobian the sensitivities are given: nothing to run ahead.
+            early = list(active[:spare]) if jacobians[0] > 0 else []
+            out = pool.map(_rig_job, [(coords, None, None, guess)] + [_difference_job(coords, i, tol, guess)
+                                                                        for i in early])
+            cache[key] = out[0]
+            ahead.clear()
+            ahead[key] = {i: s_ for i, (s_, _) in zip(early, out[1:])}
+            fit.n_sims += 1 + len(early)
         return coords, cache[key]
 
     n_rows = []
@@ -511,6 +567,7 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
             # A failed simulation: a step the trust region rejects (None only at the start).
             return np.full(n_rows[0], 1e6) if n_rows else None
         obj, chi2, nuis, _ = _objective_at(problem, sim, coords, tol, offset_sd, errs)
+        objectives[coords.tobytes()] = obj
         if obj < best["objective"]:
             best.update(objective=obj, chi2=chi2, coords=coords, sim=sim, state=state, nuisance=nuis)
         X = _design(problem, sim, errs)
@@ -521,10 +578,18 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
 
     def jac(xa):
         coords, (sim, state) = simulated(xa)
+        # trf asks for a Jacobian only at an accepted point: the step's gain is known here.
+        obj, last = objectives[coords.tobytes()], stop["last"]
+        stop["last"] = obj
+        stop["now"] = jacobians[0] >= max_jacobians - 1 or best["chi2"] < AT_NOISE * problem.n_weighted or (
+            last is not None and last - obj < UPDATE_RTOL * last)
+        if stop["now"] and not final_jacobian and stop["J"] is not None:
+            return stop["J"]  # never used: the callback ends the fit before another step
         if jacobians[0] > 0:
-            fit.sens, bad = _sensitivities(pool, coords, active, tol, sim, state, fit.sens)
+            known = ahead.pop(coords.tobytes(), {})
+            fit.sens, bad = _sensitivities(pool, coords, active, tol, sim, state, fit.sens, known)
             fit.failed = sorted(set(fit.failed) | set(bad))
-            fit.n_sims += len(active)
+            fit.n_sims += len(active) - len(known)
         jacobians[0] += 1
         X = _design(problem, sim, errs)
         _, _, _, H_inv = _objective_at(problem, sim, coords, tol, offset_sd, errs)
@@ -536,11 +601,12 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
             unit = np.zeros(k)
             unit[i] = 1.0
             cols.append(np.r_[-(v - X @ a), _prior_rows(-a, unit, tol, offset_sd, errs)])
-        return np.stack(cols, axis=1)
+        stop["J"] = np.stack(cols, axis=1)
+        return stop["J"]
 
     def callback(intermediate_result):  # noqa: ARG001 (scipy passes the iterate)
         note(f"evaluation {fit.n_sims}, chi2 {best['chi2']:.4g}")
-        if best["chi2"] < AT_NOISE * problem.n_weighted or jacobians[0] >= max_jacobians:
+        if stop["now"]:
             raise StopIteration
 
     # Strictly inside the bounds, as trf starts (a start on a bound would cost one more simulation).
@@ -571,16 +637,26 @@ def _main_of(mechanism):
     return MECHANISMS[mechanism.name].main
 
 
-def _sensitivities(pool, coords, which, tol, sim, state, previous):
-    """Finite differences over FD_FRACTION tolerances, for the parameters ``which``, in parallel."""
-    jobs = []
-    for i in which:
-        x = coords.copy()
-        x[i] += FD_FRACTION * tol[i]
-        jobs.append((x, None, None, state))
+def _difference_job(coords, i, tol, guess):
+    """The simulation job of parameter ``i``'s finite difference at ``coords``."""
+    x = coords.copy()
+    x[i] += FD_FRACTION * tol[i]
+    return x, None, None, guess
+
+
+def _sensitivities(pool, coords, which, tol, sim, state, previous, known=None):
+    """Finite differences over FD_FRACTION tolerances, for the parameters ``which``, in parallel.
+
+    ``known`` maps a parameter to its difference's simulation run already
+    (``_trust_region`` runs some beside a trial point); the rest are run.
+    """
+    known = dict(known or {})
+    run = [i for i in which if i not in known]
+    for i, (s_, _) in zip(run, pool.map(_rig_job, [_difference_job(coords, i, tol, state) for i in run])):
+        known[i] = s_
     out = list(previous)
     failed = []
-    for i, (s_, _) in zip(which, pool.map(_rig_job, jobs)):
+    for i, s_ in ((i, known[i]) for i in which):
         if s_ is None:
             failed.append(int(i))
             out[i] = np.zeros_like(sim)
