@@ -11,6 +11,8 @@ measure what a user's code would get.
   triangulated; ``bench_calibration``: calibration alone
 - ``bench_reconstruction``: marker, body and rope figures against the truth;
   ``bench_triangulation``: speed against OpenCV's pairwise triangulation
+- ``bench_diagnosis`` (``diagnosis_summary_lines``): one diagnosis of the
+  sample session, timed end to end as the command runs it
 - ``bench_discovery`` (``discovery_command``, ``discovery_summary_lines``):
   blind sessions diagnosed and scored against the physics hidden in them
 
@@ -29,6 +31,8 @@ _EXPORTS = {
     "bench_calibration": ("_calibration", "bench_calibration"),
     "bench_triangulation": ("_triangulation", "bench_triangulation"),
     "bench_reconstruction": ("_reconstruction", "bench_reconstruction"),
+    "bench_diagnosis": ("_diagnosis", "bench_diagnosis"),
+    "diagnosis_summary_lines": ("_diagnosis", "summary_lines"),
     "bench_discovery": ("_discovery", "bench_discovery"),
     "discovery_command": ("_discovery", "bench_command"),
     "discovery_summary_lines": ("_discovery", "summary_lines"),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 from dragline.capture import json_text, write_json
@@ -21,7 +22,9 @@ def add_parser(sub):
     p.add_argument("--realism", action="store_true",
                    help="discovery: truth rigs drawn within the rig's tolerances, simulated finer than the "
                         "diagnosis, with out-of-menu physics among the cases")
-    p.add_argument("--workers", type=int, default=2, help="discovery: parallel processes")
+    p.add_argument("--workers", type=int, default=2, help="discovery, diagnosis: parallel processes")
+    p.add_argument("--session", metavar="DIR",
+                   help="diagnosis: the session to diagnose (default: the sample session's recipe, synthesised first)")
     add_scheduler_option(p)
     p.add_argument("--keep-diagnoses", metavar="DIR",
                    help="discovery: keep every case's diagnosis.json in DIR (case<seed>.json)")
@@ -52,6 +55,15 @@ def _triangulation(args):
     return bench_triangulation(seed=args.seed, repeats=args.repeats), []
 
 
+def _diagnosis(args):
+    from dragline.benchmarks import bench_diagnosis, diagnosis_summary_lines
+
+    if args.session is not None and not os.path.isdir(args.session):
+        raise ValueError(f"{args.session}: no such session folder")
+    report = bench_diagnosis(session=args.session, repeats=args.repeats, workers=args.workers)
+    return report, diagnosis_summary_lines(report)
+
+
 def _discovery(args):
     from dragline.benchmarks import discovery_command
 
@@ -59,7 +71,7 @@ def _discovery(args):
 
 
 BENCHES = {"simulate": _simulate, "capture": _capture, "reconstruct": _reconstruct, "triangulation": _triangulation,
-           "discovery": _discovery}
+           "diagnosis": _diagnosis, "discovery": _discovery}
 
 
 def run(args):
