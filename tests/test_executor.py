@@ -53,12 +53,24 @@ def test_dask_returns_what_local_processes_return(cluster, context):
     local = _results(LocalExecutor(2), context)
     dask = _results(DaskExecutor(client=client), context)
     serial = _results(LocalExecutor(1), context)
-    assert [(n, v) for n, v, _ in dask] == [(n, v) for n, v, _ in local] == [(n, v) for n, _, v in JOBS]
-    for (_, _, a), (_, _, b), (_, _, c) in zip(local, dask, serial):
+    assert [(n, v) for n, v, *_ in dask] == [(n, v) for n, v, *_ in local] == [(n, v) for n, _, v in JOBS]
+    for (_, _, a, _), (_, _, b, _), (_, _, c, _) in zip(local, dask, serial):
         assert a.shape == (31, len(CHANNELS))
         np.testing.assert_array_equal(a, b)  # the same machine code on the same inputs: bit for bit
         np.testing.assert_array_equal(a, c)
     assert not np.array_equal(local[0][2], local[1][2])  # the jobs differ, so the comparison can fail
+
+
+def test_a_session_says_how_many_tasks_run_at_once(cluster, context):
+    # The model updating fills a trial point's idle slots with Jacobian columns: the count must be right.
+    _, client = cluster
+    for executor, slots in ((LocalExecutor(1), 1), (LocalExecutor(2), min(2, os.cpu_count())),
+                            (DaskExecutor(client=client), 2)):
+        session = executor.open(_init, (context,))
+        try:
+            assert session.slots == slots
+        finally:
+            session.close()
 
 
 def test_the_executor_is_described(cluster):
@@ -103,7 +115,7 @@ def test_a_worker_lost_mid_run_has_its_tasks_run_elsewhere(context):
                 killer.join()
                 session.close()
     local = _results(LocalExecutor(1), context)
-    for (_, _, a), (_, _, b) in zip(local * 3, got):
+    for (_, _, a, _), (_, _, b, _) in zip(local * 3, got):
         np.testing.assert_array_equal(a, b)
 
 
