@@ -47,7 +47,7 @@ class Executor:
     kind = "abstract"
 
     def open(self, initializer, initargs=()):
-        """A session (``map``, ``close``) whose tasks find ``initializer(*initargs)`` done."""
+        """A session (``map``, ``close``, ``slots``) whose tasks find ``initializer(*initargs)`` done."""
         raise NotImplementedError
 
     def describe(self):
