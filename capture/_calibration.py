@@ -470,8 +470,8 @@ def _even(n, most):
 
 
 def _adjust(problem, x0, f_scale):
-    # A loaded machine hands BLAS work to threads that wait for a core (LSMR's dot products, before,
-    # ran 15x slower that way): one thread.
+    # On a loaded machine BLAS threads wait for a core at every hand-off (an LSMR solver here once ran
+    # 15x slower so): one thread.
     with threadpool_limits(1, user_api="blas"):
         return levenberg_marquardt(problem.residuals, x0, problem.sparsity(), f_scale, ftol=_FTOL, xtol=1e-10,
                                    max_iter=_MAX_ITER)
