@@ -96,7 +96,8 @@ def sparse_jacobian(fun, x, f0, sparsity, groups):
     scipy.sparse.csc_matrix (m, n)
     """
     S = csc_matrix(sparsity)
-    S.sort_indices()
+    if not S.has_sorted_indices:
+        S = S.sorted_indices()  # a copy: the caller's matrix stays as given
     h = np.sqrt(_EPS) * np.maximum(1.0, np.abs(x))
     cols = np.repeat(np.arange(S.shape[1]), np.diff(S.indptr))
     data = np.empty(S.indices.size)
@@ -137,14 +138,16 @@ def levenberg_marquardt(fun, x0, sparsity, f_scale, ftol=1e-8, xtol=1e-10, max_i
     -------
     BundleResult
     """
+    sparsity = csc_matrix(sparsity).sorted_indices()  # once: each Jacobian reads it by columns
     groups = column_groups(sparsity)
+    n_groups = int(groups.max()) + 1 if groups.size else 0
     x = np.asarray(x0, float).copy()
     f = fun(x)
     cost = _soft_l1_cost(f, f_scale)
     nfev, njev, lam = 1, 0, 1e-3
     while njev < max_iter:
         J = sparse_jacobian(fun, x, f, sparsity, groups)
-        nfev += int(groups.max()) + 1
+        nfev += n_groups
         njev += 1
         w = 1.0 / np.sqrt(1.0 + (f / f_scale) ** 2)
         Jw = diags(w) @ J
