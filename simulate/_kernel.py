@@ -303,6 +303,8 @@ def _rhs(t, y, dy, m, work, update):
     sumB[:] = 0.0
 
     el_side = m.el_side
+    eps, seg_decay, seg_gain = work.eps, work.seg_decay, work.seg_gain
+    slack_changes = 0.0
     for e in range(E):
         s = el_seg[e]
         side = el_side[e]
@@ -316,13 +318,14 @@ def _rhs(t, y, dy, m, work, update):
         if update:
             # F_m' = Kv eps' - lambda F_m, eps' constant over the step; from eps = 1 if it was slack
             eps_now = length / Le
-            if (eps_now > 1.0) != (work.eps[e] > 1.0):
-                work.slack_changes[0] += 1.0
+            eps_then = eps[e]
+            if (eps_now > 1.0) != (eps_then > 1.0):
+                slack_changes += 1.0
             if length > Le:
-                y[o_F + e] = work.seg_decay[s] * y[o_F + e] + work.seg_gain[s] * (eps_now - max(work.eps[e], 1.0))
+                y[o_F + e] = seg_decay[s] * y[o_F + e] + seg_gain[s] * (eps_now - max(eps_then, 1.0))
             else:
                 y[o_F + e] = 0.0
-            work.eps[e] = eps_now
+            eps[e] = eps_now
         Fm = y[o_F + e]
         tension = 0.0
         if length > Le:
@@ -349,6 +352,8 @@ def _rhs(t, y, dy, m, work, update):
         nf[nb_, 0] -= fx
         nf[nb_, 1] -= fy
         nf[nb_, 2] -= fz
+    if update:
+        work.slack_changes[0] += slack_changes
 
     # each body end's force on its body, with its moment, in element order (as summed before the node map)
     for k in range(bnode_body.shape[0]):
@@ -462,7 +467,7 @@ def project(t, y, m, work):
 
 
 @njit(cache=True, **NO_REFCOUNT)
-def dissipate(t, y, dt, m, work):
+def dissipate(t, y, dt, m, work, geometry_fresh):
     """Implicit step of the dissipative mechanisms, after each step of either integrator (splitting).
 
     Joint moments (rope bending damping c, chain-link friction mu r T) and
@@ -479,6 +484,11 @@ def dissipate(t, y, dt, m, work):
     nothing. Known limit of the splitting: a stuck joint or ring creeps, as
     the RK4 step moves it by about dt^2 a / 2 before friction stops it
     (time constant ~ 2 / (dt omega^2); tests/test_mechanism_signatures.py).
+
+    ``geometry_fresh``: ``work`` already holds the body matrices, segment
+    lengths and element-end positions at (t, y)'s positions (Verlet's last
+    right-hand side was evaluated there; its kick moved only velocities), so
+    they are not computed again: a quarter of a ring-friction step's time.
     """
     has_joints = m.has_joints != 0
     has_rings = m.has_ring_friction != 0
@@ -489,34 +499,20 @@ def dissipate(t, y, dt, m, work):
     o_part, o_vel, o_F, o_ring = _offsets(m)
     T, Lseg, dLseg, reel_buf, reel_rate, fpos, fvel = work.T, work.Lseg, work.dLseg, work.reel_buf, work.reel_rate, work.fpos, work.fvel
     el_u, el_len, el_T, el_arm = work.el_u, work.el_len, work.el_T, work.el_arm
-    el_seg, el_side = m.el_seg, m.el_side
-    seg_ks, seg_ring, seg_nel, seg_nelA, seg_rho = m.seg_ks, m.seg_ring, m.seg_nel, m.seg_nelA, m.seg_rho
-    _fixed_points(t, m.reel_t, m.point_pos, fpos, fvel)
-    for b in range(nb):
-        _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
-    _segment_lengths(t, m.seg_len0, m.seg_reel, m.seg_reel_off, m.reel_t, m.reel_len, Lseg, dLseg, reel_buf, reel_rate)
-    nx, narm, el_na, el_nb = work.nx, work.narm, m.el_na, m.el_nb
-    _gather_nodes(y, m, T, fpos, fvel, nx, work.nv, narm, o_part, o_vel, False)
-    P = m.part_seg.shape[0]
-    body_end = P + m.bnode_body.shape[0]  # nodes P .. body_end - 1 are body ends
-    for e in range(E):
-        se = el_seg[e]
-        rg = seg_ring[se]
-        if m.seg_bend_c[se] == 0.0 and m.seg_link_mu[se] == 0.0 and not (rg >= 0 and m.ring_mu[rg] > 0.0):
-            continue  # no mechanism acts on this segment
-        Le, _ = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
-        na, nb_ = el_na[e], el_nb[e]
-        dx, dyy, dz = nx[nb_, 0] - nx[na, 0], nx[nb_, 1] - nx[na, 1], nx[nb_, 2] - nx[na, 2]
-        length = np.sqrt(dx * dx + dyy * dyy + dz * dz)
-        el_len[e] = length
-        el_u[e, 0], el_u[e, 1], el_u[e, 2] = dx / length, dyy / length, dz / length
-        tension = seg_ks[el_seg[e]] / Le * (length - Le) + y[o_F + e] if length > Le else 0.0
-        el_T[e] = max(tension, 0.0)
-        for end in range(2):
-            node = na if end == 0 else nb_
-            for k in range(3):
-                el_arm[e, 3 * end + k] = narm[node - P, k] if P <= node < body_end else 0.0
+    el_seg, seg_rho = m.el_seg, m.seg_rho
+    if not geometry_fresh:
+        _fixed_points(t, m.reel_t, m.point_pos, fpos, fvel)
+        for b in range(nb):
+            _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
+        _segment_lengths(t, m.seg_len0, m.seg_reel, m.seg_reel_off, m.reel_t, m.reel_len, Lseg, dLseg, reel_buf,
+                         reel_rate)
+        _gather_nodes(y, m, T, fpos, fvel, work.nx, work.nv, work.narm, o_part, o_vel, False)
     if has_joints:
+        for e in range(E):
+            se = el_seg[e]
+            if m.seg_bend_c[se] == 0.0 and m.seg_link_mu[se] == 0.0:
+                continue  # no joint mechanism acts on this segment
+            _dissipate_geometry(e, y, m, work, o_F, o_ring)
         _joint_geometry(m, Lseg, el_len, el_arm, work.el_inv_len, work.el_inv_mass)
         _joint_impulses(y, dt, m, T, fpos, fvel, el_u, work.el_inv_len, work.el_inv_mass, el_T, el_arm, o_part, o_vel)
     if has_rings:
@@ -526,6 +522,9 @@ def dissipate(t, y, dt, m, work):
                 continue
             s = ring_seg[rg]
             eA, eB = ring_eA[rg], ring_eB[rg]
+            # the capstan needs only the two elements that meet at the ring
+            _dissipate_geometry(eA, y, m, work, o_F, o_ring)
+            _dissipate_geometry(eB, y, m, work, o_F, o_ring)
             cosb = el_u[eA, 0] * el_u[eB, 0] + el_u[eA, 1] * el_u[eB, 1] + el_u[eA, 2] * el_u[eB, 2]
             beta = np.arccos(min(1.0, max(-1.0, cosb)))
             limit = min(el_T[eA], el_T[eB]) * (np.exp(ring_mu[rg] * beta) - 1.0)
@@ -536,6 +535,27 @@ def dissipate(t, y, dt, m, work):
                 y[i] = 0.0  # stick
             else:
                 y[i] = vs - np.sign(vs) * limit * dt / mass
+
+
+@njit(cache=True, inline="always")
+def _dissipate_geometry(e, y, m, work, o_F, o_ring):
+    """Element e's length, unit vector, tension and end lever arms into ``work`` (``dissipate``)."""
+    Le, _ = _element_rest(e, y, m.el_seg, m.el_side, m.seg_ring, m.seg_nel, m.seg_nelA, work.Lseg, work.dLseg,
+                          o_ring)
+    nx, narm = work.nx, work.narm
+    na, nb_ = m.el_na[e], m.el_nb[e]
+    dx, dyy, dz = nx[nb_, 0] - nx[na, 0], nx[nb_, 1] - nx[na, 1], nx[nb_, 2] - nx[na, 2]
+    length = np.sqrt(dx * dx + dyy * dyy + dz * dz)
+    work.el_len[e] = length
+    work.el_u[e, 0], work.el_u[e, 1], work.el_u[e, 2] = dx / length, dyy / length, dz / length
+    tension = m.seg_ks[m.el_seg[e]] / Le * (length - Le) + y[o_F + e] if length > Le else 0.0
+    work.el_T[e] = max(tension, 0.0)
+    P = m.part_seg.shape[0]
+    body_end = P + m.bnode_body.shape[0]  # nodes P .. body_end - 1 are body ends
+    for end in range(2):
+        node = na if end == 0 else nb_
+        for k in range(3):
+            work.el_arm[e, 3 * end + k] = narm[node - P, k] if P <= node < body_end else 0.0
 
 
 @njit(cache=True, inline="always")
@@ -746,7 +766,7 @@ def rk4_step(t, h, y, k1, k2, k3, k4, tmp, m, work):
         y[i] += sixth * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
     project(t + h, y, m, work)
     if m.has_joints != 0 or m.has_ring_friction != 0:  # skip even the call in the nominal model
-        dissipate(t + h, y, h, m, work)
+        dissipate(t + h, y, h, m, work, False)
 
 
 @njit(cache=True)

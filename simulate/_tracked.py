@@ -199,9 +199,10 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
     if method == VERLET:
         acc, y_eval = verlet_scratch(t0, y, m, work)
         y_start, acc_start, eps_start = np.empty(n), np.empty(n), np.empty(work.eps.shape[0])
+        trig_start = np.empty_like(work.trig)
     else:
         acc, y_eval = k1, tmp
-        y_start, acc_start, eps_start = tmp, tmp, tmp
+        y_start, acc_start, eps_start, trig_start = tmp, tmp, tmp, work.trig
     records[0] = y
     nb = m.nb
     P = m.part_seg.shape[0]
@@ -222,6 +223,7 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
             y_start[:] = y
             acc_start[:] = acc
             eps_start[:] = work.eps
+            trig_start[:] = work.trig
             work.slack_changes[0] = 0.0
             for j in range(sub):
                 verlet_step(t_rec + j * h, h, y, acc, y_eval, m, work)
@@ -231,6 +233,7 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
                 y[:] = y_start
                 acc[:] = acc_start
                 work.eps[:] = eps_start
+                work.trig[:] = trig_start  # the drift reads them (``verlet_step``)
                 fine = int(math.ceil(sub / SLACK_STEP_FACTOR - 1e-9))
                 if total + fine > max_steps:
                     return records[: rec + 1], substeps[: rec + 1], STATUS_TOO_STIFF, t_rec, fine

@@ -98,8 +98,12 @@ def _maxwell_factors(h, m, work):
 @njit(cache=True, inline="always")
 def _euler_angle_rates(roll, yaw, p, q, r):
     """Eq. 3: roll, pitch and yaw rates from the body rates (as ``_kernel.rhs``)."""
-    sf, cf = math.sin(roll), math.cos(roll)
-    ss, cs = math.sin(yaw), math.cos(yaw)
+    return _euler_angle_rates_trig(math.sin(roll), math.cos(roll), math.sin(yaw), math.cos(yaw), p, q, r)
+
+
+@njit(cache=True, inline="always")
+def _euler_angle_rates_trig(sf, cf, ss, cs, p, q, r):
+    """``_euler_angle_rates`` from the sines and cosines of roll (sf, cf) and yaw (ss, cs)."""
     pitch_rate = (p * ss + q * cs) / cf
     return p * cs - q * ss, pitch_rate, r + pitch_rate * sf
 
@@ -119,7 +123,7 @@ def _kick(y, acc, half, nb, o_vel, o_F, o_ring, R):
 
 @njit(cache=True)
 def verlet_scratch(t, y, m, work):
-    """The accelerations at (t, y) and the evaluation state a run starts from; ``work.eps`` set at (t, y)."""
+    """The accelerations at (t, y) and the evaluation state a run starts from; ``work.eps`` and ``work.trig`` set at (t, y)."""
     n = y.shape[0]
     acc = np.empty(n)
     rhs(t, y, acc, m, work)
@@ -133,7 +137,10 @@ def verlet_step(t, h, y, acc, y_eval, m, work):
     """One kick-drift-kick step of length h from (t, y), in place.
 
     ``acc`` holds the accelerations at (t, y) on entry and at (t + h, y) on
-    return; ``work.eps`` the stretch ratios likewise; ``y_eval`` is scratch.
+    return; ``work.eps`` the stretch ratios likewise, and ``work.trig`` the
+    bodies' roll and yaw sines and cosines (the drift's first Euler-angle
+    rates read them: the last right-hand side computed them at these
+    angles, and recomputing was a tenth of the step); ``y_eval`` is scratch.
     """
     nb = m.nb
     R = m.ring_seg.shape[0]
@@ -146,7 +153,8 @@ def verlet_step(t, h, y, acc, y_eval, m, work):
             y[o + k] += h * y[o + 3 + k]
         roll, pitch, yaw = y[o + 6], y[o + 7], y[o + 8]
         p, q, r = y[o + 9], y[o + 10], y[o + 11]
-        d0, d1, d2 = _euler_angle_rates(roll, yaw, p, q, r)
+        d0, d1, d2 = _euler_angle_rates_trig(work.trig[b, 0], work.trig[b, 1], work.trig[b, 2], work.trig[b, 3],
+                                             p, q, r)
         d0, d1, d2 = _euler_angle_rates(roll + half * d0, yaw + half * d2, p, q, r)
         y[o + 6] = roll + h * d0
         y[o + 7] = pitch + h * d1
@@ -164,5 +172,5 @@ def verlet_step(t, h, y, acc, y_eval, m, work):
         y[e] = y_eval[e]  # the Maxwell forces, advanced in y_eval
     _kick(y, acc, half, nb, o_vel, o_F, o_ring, R)
     if m.has_joints != 0 or m.has_ring_friction != 0:
-        dissipate(t + h, y, h, m, work)
+        dissipate(t + h, y, h, m, work, True)  # work holds the geometry at (t + h, y): rhs_maxwell_update
 

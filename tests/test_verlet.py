@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dragline.simulate import Maneuver, assemble, dig_maneuver, load_rig, simulate, solve_statics
+from dragline.simulate import Maneuver, assemble, dig_maneuver, load_rig, parse_physics, simulate, solve_statics
 from dragline.simulate import _kernel
 from dragline.simulate._time_step import VERLET_SAFETY, start_time_step
 from dragline.simulate._tracked import VERLET, integrate_tracked
@@ -91,6 +91,27 @@ def test_an_element_turning_slack_makes_the_tracked_verlet_step_finer():
     dt0, _ = start_time_step(model, y0, integrator="verlet")
     assert res.dt < 0.5 * dt0  # intervals were redone finer
     assert np.diff(res.energy()).max() < 1e-6
+
+
+def test_dissipation_reads_the_geometry_verlet_left_exactly_as_it_would_compute_it():
+    # Verlet's step ends with the dissipative impulses at the positions its last
+    # right-hand side saw, and they reuse that evaluation's geometry: the same
+    # velocities to the bit as computing it afresh, for joints and rings alike.
+    physics = [parse_physics("pulley_friction:mu=0.05"), parse_physics("chain_link_friction:mu=0.3"),
+               parse_physics("rope_bending_damping")]
+    res = simulate(duration=3.0, rate_hz=100.0, physics=physics)
+    model = res.model
+    m = model.kernel_tuple()
+    t, y = float(res.time[-1]), res.states[-1]
+    work = _kernel.make_work(m)
+    _kernel.rhs(t, y, np.empty_like(y), m, work)
+    reused, fresh = y.copy(), y.copy()
+    _kernel.dissipate(t, reused, 1e-4, m, work, True)
+    _kernel.dissipate(t, fresh, 1e-4, m, _kernel.make_work(m), False)
+    assert not np.array_equal(fresh, y)  # the impulses acted
+    np.testing.assert_array_equal(reused, fresh)
+
+
 def test_unknown_integrator_is_refused():
     with pytest.raises(ValueError, match="unknown integrator"):
         simulate(duration=0.01, integrator="euler")
