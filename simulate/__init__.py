@@ -4,6 +4,12 @@
 ``SimulationResult`` whose ``table`` is the trajectory table of docs/conventions.md.
 """
 
+from pathlib import Path as _Path
+
+from ._numba_cache import use_source_keyed_cache as _use_source_keyed_cache
+
+_use_source_keyed_cache(_Path(__file__).parent)  # before any compiled module is imported
+
 from ._kinematics import (
     body_rates_from_euler_rates,
     body_to_inertial,
