@@ -29,6 +29,8 @@ import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 
+from threadpoolctl import threadpool_limits
+
 __all__ = ["Executor", "LocalExecutor", "DaskExecutor", "ExecutorError", "executor_from", "as_executor"]
 
 # A Dask cluster without a single worker for this long stops the run (s).
@@ -82,19 +84,36 @@ class _Serial:
         pass
 
 
+def _one_blas_thread_then(initializer, *initargs):
+    threadpool_limits(1)  # for the worker's life
+    initializer(*initargs)
+
+
 class _LocalPool:
+    """Worker processes, one per core asked for, each with one BLAS thread.
+
+    Every core has a worker, so BLAS threads (the parent's fits, a worker's
+    statics) could only oversubscribe them: the parent runs with one thread
+    too while the pool is open. (With one BLAS thread everywhere,
+    ``OPENBLAS_NUM_THREADS=1``, the session ``dragline run`` makes was
+    diagnosed in 72.7 and 74.0 s against 75.9 and 76.9 s, alternated, the
+    same verdict and fit; 2026-11-26, two cores.)
+    """
+
     def __init__(self, workers, initializer, initargs):
+        self._blas = threadpool_limits(1)
         initializer(*initargs)  # the parent evaluates too (the serial parts of a fit)
         self.slots = workers
         method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
         self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
-                                         initializer=initializer, initargs=initargs)
+                                         initializer=_one_blas_thread_then, initargs=(initializer, *initargs))
 
     def map(self, fn, jobs, each=None):
         return _collect(self._pool.map(fn, *zip(*jobs)), each) if jobs else []
 
     def close(self):
         self._pool.shutdown()
+        self._blas.restore_original_limits()
 
 
 class LocalExecutor(Executor):

@@ -19,6 +19,7 @@ particle of the span heavier at the same rate.
 
 from __future__ import annotations
 
+import functools
 from collections import namedtuple
 from dataclasses import dataclass, field
 
@@ -434,30 +435,45 @@ def rough_body_positions(rig, hoist_length, drag_length):
     the hoist rope's span and, when it is taut, held back by the drag rope;
     the block's place is found on the x-z plane by a two-rope balance.
     """
-    from scipy.optimize import minimize
-
     fp = rig.fixed_points
     if "boom_pulley" not in fp:  # not a dragline: bodies start at their given positions
         return {name: (np.zeros(3) if b.position is None else b.position) for name, b in rig.bodies.items()}
     boom = fp["boom_pulley"]
     reel_h = fp.get("hoist_reel", boom)
     reel_d = fp.get("drag_reel", np.zeros(3))
+    p = np.array(_hanging_block(tuple(map(float, boom)), tuple(map(float, reel_h)), tuple(map(float, reel_d)),
+                                float(hoist_length), float(drag_length)))
+    return {name: p + off for name, off in _BLOCK_OFFSETS.items() if name in rig.bodies}
+
+
+# Each body's mass centre from the bucket's in the rough pose (hanging, level).
+_BLOCK_OFFSETS = {
+    "bucket": np.zeros(3),
+    "spreader_bar": np.array([-0.05, 0.0, -0.27]),
+    "hoist_cluster": np.array([-0.05, 0.0, -0.55]),
+    "drag_cluster": np.array([0.75, 0.0, -0.05]),
+}
+
+
+@functools.lru_cache(maxsize=64)
+def _hanging_block(boom, reel_h, reel_d, hoist_length, drag_length):
+    """The bucket's rough place (x, 0, z) for ``rough_body_positions``.
+
+    Kept per fixed points and lengths: every model is assembled through
+    here, and a diagnosis assembles hundreds of rigs that differ only in
+    masses and ropes (4 ms each).
+    """
+    from scipy.optimize import minimize
+
+    boom, reel_h, reel_d = np.array(boom), np.array(reel_h), np.array(reel_d)
     span_h = hoist_length - np.linalg.norm(boom - reel_h)
-    # offsets of each body's mass centre from the bucket's (hanging, level)
-    offs = {
-        "bucket": np.zeros(3),
-        "spreader_bar": np.array([-0.05, 0.0, -0.27]),
-        "hoist_cluster": np.array([-0.05, 0.0, -0.55]),
-        "drag_cluster": np.array([0.75, 0.0, -0.05]),
-    }
 
     def cost(xz):
         p = np.array([xz[0], 0.0, xz[1]])
-        dh = np.linalg.norm(p + offs["hoist_cluster"] - boom) - 0.99 * span_h
-        dd = max(0.0, np.linalg.norm(p + offs["drag_cluster"] - reel_d) - 0.99 * drag_length)
+        dh = np.linalg.norm(p + _BLOCK_OFFSETS["hoist_cluster"] - boom) - 0.99 * span_h
+        dd = max(0.0, np.linalg.norm(p + _BLOCK_OFFSETS["drag_cluster"] - reel_d) - 0.99 * drag_length)
         return dh**2 + dd**2 + 1e-4 * (-p[2])
 
     x0 = np.array([boom[0] + 0.3, boom[2] + span_h + 0.55])
     res = minimize(cost, x0, method="Nelder-Mead", options={"xatol": 1e-6, "fatol": 1e-12, "maxiter": 4000})
-    p = np.array([res.x[0], 0.0, res.x[1]])
-    return {name: p + off for name, off in offs.items() if name in rig.bodies}
+    return float(res.x[0]), 0.0, float(res.x[1])

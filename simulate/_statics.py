@@ -19,9 +19,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from . import _kernel
+from ._blas import one_blas_thread
 from ._kernel import KIND_PARTICLE
 from ._model import kernel_model, rough_body_positions
 from ._time_step import _shortest_rest_lengths
@@ -273,7 +273,7 @@ def _polish(model, m, work, y, tol, max_iter=60):
 
     # One BLAS thread: the diagnosis runs statics in parallel processes on two
     # cores, where many-threaded LAPACK took ten times longer.
-    with threadpool_limits(1):
+    with one_blas_thread():
         q = _newton(residual, rest[unknown].copy(), _jacobian_pattern(model, unknown), tol, max_iter)
     rest[unknown] = q
     return rest, float(np.max(np.abs(residual(q)), initial=0.0))

@@ -26,9 +26,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 from scipy.sparse.linalg import ArpackError, eigs
-from threadpoolctl import threadpool_limits
 
 from . import _kernel
+from ._blas import one_blas_thread
 from ._tracked import gershgorin_lambda, state_gershgorin_lambda
 from ._verlet import VERLET_IMAGINARY_LIMIT
 
@@ -111,7 +111,7 @@ def start_time_step(model, state, t=None, safety=None, integrator="rk4"):
     lam = state_gershgorin_lambda(t, np.asarray(state, float), m, _kernel.make_work(m))
     # One BLAS thread: many-threaded LAPACK on a busy 2-core machine (the
     # diagnosis simulates in parallel processes) took 20x longer here.
-    with threadpool_limits(1):
+    with one_blas_thread():
         jacobian = rhs_jacobian(model, state, t)
         if integrator == "verlet":
             return (VERLET_SAFETY if safety is None else safety) * verlet_step_limit(largest_eigenvalues(jacobian)), lam

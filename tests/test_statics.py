@@ -87,3 +87,17 @@ def test_fictitious_masses_leave_the_rest_pose_and_lengthen_the_relaxation_step(
     after = [r.max() for r in _gershgorin(model, kernel_model(scaled), initial_state(model), 0.0)]
     assert max(after) == pytest.approx(before[1], rel=1e-9)  # nothing stiffer left than the bodies' translation
     assert max(before) / max(after) > 20  # the step (1 / sqrt) more than 4.5 times longer
+
+
+def test_the_rough_pose_is_kept_per_geometry_and_never_shared_between_callers(rig):
+    # Every assembled model starts from it, so it is computed once per fixed
+    # points and lengths; a caller that moves its copy moves no one else's.
+    from dragline.simulate._model import _hanging_block, rough_body_positions
+
+    first = rough_body_positions(rig, 8.6, 4.2)
+    hits = _hanging_block.cache_info().hits
+    first["bucket"] += 1.0
+    second = rough_body_positions(rig, 8.6, 4.2)
+    assert _hanging_block.cache_info().hits == hits + 1
+    np.testing.assert_array_equal(second["bucket"], first["bucket"] - 1.0)
+    assert rough_body_positions(rig, 9.0, 4.2)["bucket"][2] != second["bucket"][2]  # paid out: hangs elsewhere
