@@ -25,6 +25,8 @@ def add_parser(sub):
     p.add_argument("--workers", type=int, default=2, help="discovery, diagnosis: parallel processes")
     p.add_argument("--session", metavar="DIR",
                    help="diagnosis: the session to diagnose (default: the sample session's recipe, synthesised first)")
+    p.add_argument("--run-session", action="store_true",
+                   help="diagnosis: the session `dragline run --seed SEED` builds (made first) instead of the sample")
     add_scheduler_option(p)
     p.add_argument("--keep-diagnoses", metavar="DIR",
                    help="discovery: keep every case's diagnosis.json in DIR (case<seed>.json)")
@@ -60,7 +62,10 @@ def _diagnosis(args):
 
     if args.session is not None and not os.path.isdir(args.session):
         raise ValueError(f"{args.session}: no such session folder")
-    report = bench_diagnosis(session=args.session, repeats=args.repeats, workers=args.workers)
+    if args.session is not None and args.run_session:
+        raise ValueError("--session and --run-session name two sessions: give one")
+    report = bench_diagnosis(session=args.session, repeats=args.repeats, workers=args.workers,
+                             run_seed=args.seed if args.run_session else None)
     return report, diagnosis_summary_lines(report)
 
 

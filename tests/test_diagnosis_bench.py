@@ -1,4 +1,4 @@
-"""``dragline bench diagnosis``: it times the committed sample session's recipe, and refuses a missing one."""
+"""``dragline bench diagnosis``: it times the committed sample session's recipe or `dragline run`'s session, and refuses bad options."""
 
 import shlex
 import subprocess
@@ -27,3 +27,19 @@ def test_a_missing_session_exits_2_with_one_line(tmp_path):
     assert out.returncode == 2
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and "nowhere" in lines[0] and "Traceback" not in out.stderr
+
+
+def test_the_run_sessions_hidden_physics_is_what_the_benchmark_reports():
+    # --run-session reports HIDDEN as the truth: it must be what `dragline run` hides.
+    from dragline.pipelines._run import BUILTIN_HIDDEN_PHYSICS
+
+    name, value = BUILTIN_HIDDEN_PHYSICS.split(":")
+    assert HIDDEN == {"mechanism": name, value.split("=")[0]: float(value.split("=")[1])}
+
+
+def test_a_session_folder_and_the_run_session_together_exit_2_with_one_line(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "dragline.pipelines.cli", "bench", "diagnosis", "--session",
+                          str(tmp_path), "--run-session", "--repeats", "1"], capture_output=True, text=True)
+    assert out.returncode == 2
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--run-session" in lines[0] and "Traceback" not in out.stderr
