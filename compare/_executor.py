@@ -102,18 +102,24 @@ class _LocalPool:
 
     def __init__(self, workers, initializer, initargs):
         self._blas = threadpool_limits(1)
-        initializer(*initargs)  # the parent evaluates too (the serial parts of a fit)
-        self.slots = workers
-        method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
-        self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
-                                         initializer=_one_blas_thread_then, initargs=(initializer, *initargs))
+        try:
+            initializer(*initargs)  # the parent evaluates too (the serial parts of a fit)
+            self.slots = workers
+            method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+            self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
+                                             initializer=_one_blas_thread_then, initargs=(initializer, *initargs))
+        except BaseException:
+            self._blas.restore_original_limits()  # no close() will come
+            raise
 
     def map(self, fn, jobs, each=None):
         return _collect(self._pool.map(fn, *zip(*jobs)), each) if jobs else []
 
     def close(self):
-        self._pool.shutdown()
-        self._blas.restore_original_limits()
+        try:
+            self._pool.shutdown()
+        finally:
+            self._blas.restore_original_limits()
 
 
 class LocalExecutor(Executor):

@@ -128,3 +128,27 @@ def test_a_cluster_without_workers_stops_with_one_line(context, monkeypatch):
             session = DaskExecutor(client=client).open(_init, (context,))
             with pytest.raises(ExecutorError, match=r"has had no worker for 3 s; 4 of 4 tasks left undone"):
                 session.map(_grid_job, JOBS)
+
+
+def _blas_threads(*_):
+    from threadpoolctl import threadpool_info
+
+    return max(lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas")
+
+
+def test_local_workers_and_their_parent_run_one_blas_thread_while_the_pool_is_open():
+    # Every core has a worker: BLAS threads could only oversubscribe them.
+    from threadpoolctl import threadpool_limits
+
+    if (os.cpu_count() or 1) < 2:
+        pytest.skip("one core: the local executor runs in this process, without a pool")
+
+    with threadpool_limits(2, user_api="blas"):  # as a 2-core machine starts
+        session = LocalExecutor(2).open(_blas_threads, ())
+        try:
+            inside = _blas_threads()
+            workers = session.map(_blas_threads, [(i,) for i in range(4)])
+        finally:
+            session.close()
+        assert inside == 1 and workers == [1, 1, 1, 1]
+        assert _blas_threads() == 2  # given back when the pool closes
