@@ -123,7 +123,10 @@ def _kick(y, acc, half, nb, o_vel, o_F, o_ring, R):
 
 @njit(cache=True)
 def verlet_scratch(t, y, m, work):
-    """The accelerations at (t, y) and the evaluation state a run starts from; ``work.eps`` and ``work.trig`` set at (t, y)."""
+    """The accelerations at (t, y) and the evaluation state a run starts from.
+
+    ``work.eps`` and ``work.trig`` are left as they are at (t, y).
+    """
     n = y.shape[0]
     acc = np.empty(n)
     rhs(t, y, acc, m, work)
@@ -140,7 +143,7 @@ def verlet_step(t, h, y, acc, y_eval, m, work):
     return; ``work.eps`` the stretch ratios likewise, and ``work.trig`` the
     bodies' roll and yaw sines and cosines (the drift's first Euler-angle
     rates read them: the last right-hand side computed them at these
-    angles, and recomputing was a tenth of the step); ``y_eval`` is scratch.
+    angles, and recomputing them cost 5 % of the step); ``y_eval`` is scratch.
     """
     nb = m.nb
     R = m.ring_seg.shape[0]
