@@ -15,8 +15,10 @@
   (``MarkerFile``), and a trial cut between two of a file's labelled events
   (``between_events``, ``event_frame``)
 - helpers every stage uses: strict JSON (``json_text``, ``json_ready``,
-  ``write_json``) and schema messages (``describe_validation_error``,
-  ``fields_markdown``, ``key_text``, ``short_repr``)
+  ``write_json``), schema messages (``describe_validation_error``,
+  ``fields_markdown``, ``key_text``, ``short_repr``) and the column
+  colouring of a sparse finite-difference Jacobian (``column_groups``: the
+  bundle adjustment's, and the simulator's statics)
 
 The synthetic lab that films the simulator (cameras placed for the rig,
 wand, synthetic sessions) is the ``lab`` package; the results MCAP for
@@ -29,6 +31,7 @@ from ._schema_tools import describe_validation_error, fields_markdown, key_text,
 from ._atomic import atomic_file
 from ._strict_json import json_ready, json_text, write_json
 
+from ._bundle import column_groups
 from ._calibration import calibrate, triangulate_views
 from ._cameras import Camera, camera_centre, load_cameras, project_points, save_cameras
 from ._mcap_io import CHUNK_SIZE as MCAP_CHUNK_SIZE

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..capture import column_groups
 from . import _kernel
 from ._blas import one_blas_thread
 from ._kernel import KIND_PARTICLE
@@ -390,18 +391,8 @@ _GROUPS = {}
 
 
 def _colour_columns(pattern):
-    groups, used = [], []
-    for j in range(pattern.shape[1]):
-        rows = pattern[:, j]
-        for g, mask in zip(groups, used):
-            if not (mask & rows).any():
-                g.append(j)
-                mask |= rows
-                break
-        else:
-            groups.append([j])
-            used.append(rows.copy())
-    return [np.array(g) for g in groups]
+    labels = column_groups(pattern)  # the bundle adjustment's first-fit colouring, in column order
+    return [np.flatnonzero(labels == g) for g in range(int(labels.max()) + 1 if labels.size else 0)]
 
 
 def _accel_index(model):

@@ -656,7 +656,8 @@ def _sensitivities(pool, coords, which, tol, sim, state, previous, known=None):
         known[i] = s_
     out = list(previous)
     failed = []
-    for i, s_ in ((i, known[i]) for i in which):
+    for i in which:
+        s_ = known[i]
         if s_ is None:
             failed.append(int(i))
             out[i] = np.zeros_like(sim)
