@@ -73,6 +73,8 @@ OFFSET_FINDING = {"position": 0.010, "angle": math.radians(2.0), "rope_length": 
 MAX_JACOBIANS = 8
 # Updating stops when a step gains less than this share of the objective.
 UPDATE_RTOL = 0.01
+# Between differenced Jacobians, at most this many steps on secant (Broyden) updates of the sensitivities.
+SECANT_STEPS = 3
 # Updating stops once chi2 is within this factor of its noise expectation.
 AT_NOISE = 1.05
 # Finite-difference step, in tolerances. A simulation is a smooth function of
@@ -405,11 +407,11 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
         if not options:
             return None
         _, coords, sim, state = min(options, key=lambda o: o[0])
-        sens, _ = _sensitivities(pool, coords, active, tol, sim, state, list(update["sensitivities"]))
-        n_sims += len(active)
-        fit = _trust_region(problem, pool, _Fit(coords, sim, state, sens), active, tol, offset_sd, errs,
-                            MAX_JACOBIANS, lambda m: note(f"joint refit with {mechanism.name}: {m}"),
-                            final_jacobian=False)
+        # The updated model's sensitivities, without the mechanism and perhaps from the other start,
+        # begin the fit as a secant model would: differenced only when a step on them gains little.
+        fit = _trust_region(problem, pool, _Fit(coords, sim, state, list(update["sensitivities"])), active, tol,
+                            offset_sd, errs, MAX_JACOBIANS, lambda m: note(f"joint refit with {mechanism.name}: {m}"),
+                            final_jacobian=False, exact_start=False)
         n_sims += fit.n_sims
     finally:
         pool.close()
@@ -496,7 +498,8 @@ class _Fit:
     n_sims: int = 0
 
 
-def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobians, note, final_jacobian=True):
+def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobians, note, final_jacobian=True,
+                  secant_steps=SECANT_STEPS, exact_start=True):
     """Bounded trust-region least squares on the active coordinates from ``fit``.
 
     scipy's ``least_squares`` (``trf``, ``x_scale`` the tolerances, so its
@@ -537,7 +540,10 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
     best = {"objective": math.inf}
     jacobians = [0]
     objectives = {}
-    stop = {"now": False, "last": None, "J": None}  # the stop decided at an accepted point; its objective; trf's J
+    # The stop decided at an accepted point; its objective; trf's J; whether the sensitivities are
+    # differences at the current point (else secant updates of them); the point they belong to.
+    stop = {"now": False, "last": None, "J": None, "exact": exact_start, "secants": 0, "at": None}
+    stale = {int(i): 0 for i in active}  # secant steps since each sensitivity was last differenced
 
     def full(xa):
         coords = base.copy()
@@ -549,8 +555,9 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
         key = coords.tobytes()
         if key not in cache:
             guess = best.get("state", fit.state)
-            # Before the first Jacobian the sensitivities are given: nothing to run ahead.
-            early = list(active[:spare]) if jacobians[0] > 0 else []
+            # Before the first Jacobian the sensitivities are given: nothing to run ahead. The
+            # stalest sensitivities first (all equal after a differenced Jacobian: in order).
+            early = sorted(active, key=lambda i: -stale[int(i)])[:spare] if jacobians[0] > 0 else []
             out = pool.map(_rig_job, [(coords, None, None, guess)] + [_difference_job(coords, i, tol, guess)
                                                                         for i in early])
             cache[key] = out[0]
@@ -576,21 +583,45 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
         n_rows[:] = [len(r)]
         return r
 
+    def differenced(coords, sim, state):
+        known = ahead.pop(coords.tobytes(), {})
+        fit.sens, bad = _sensitivities(pool, coords, active, tol, sim, state, fit.sens, known)
+        fit.failed = sorted(set(fit.failed) | set(bad))
+        fit.n_sims += len(active) - len(known)
+        stale.update({int(i): 0 for i in active})
+        stop.update(exact=True, secants=0)
+
+    def secant(coords, sim, state):
+        previous, sim_before = stop["at"]
+        fit.sens = _secant_update(fit.sens, active, tol, coords - previous, sim - sim_before)
+        known = ahead.pop(coords.tobytes(), {})
+        fit.sens, bad = _sensitivities(pool, coords, list(known), tol, sim, state, fit.sens, known)
+        fit.failed = sorted(set(fit.failed) | set(bad))
+        stale.update({int(i): stale[int(i)] + 1 for i in active})
+        stale.update({int(i): 0 for i in known})
+        stop.update(exact=False, secants=stop["secants"] + 1)
+
     def jac(xa):
         coords, (sim, state) = simulated(xa)
         # trf asks for a Jacobian only at an accepted point: the step's gain is known here.
         obj, last = objectives[coords.tobytes()], stop["last"]
         stop["last"] = obj
+        small_gain = last is not None and last - obj < UPDATE_RTOL * last
+        # A small gain ends the fit only when the step came from differenced sensitivities: after
+        # a secant step it says the secant model is spent, and the sensitivities are differenced.
         stop["now"] = jacobians[0] >= max_jacobians - 1 or best["chi2"] < AT_NOISE * problem.n_weighted or (
-            last is not None and last - obj < UPDATE_RTOL * last)
+            small_gain and stop["exact"])
         if stop["now"] and not final_jacobian and stop["J"] is not None:
             return stop["J"]  # never used: the callback ends the fit before another step
         if jacobians[0] > 0:
-            known = ahead.pop(coords.tobytes(), {})
-            fit.sens, bad = _sensitivities(pool, coords, active, tol, sim, state, fit.sens, known)
-            fit.failed = sorted(set(fit.failed) | set(bad))
-            fit.n_sims += len(active) - len(known)
-        jacobians[0] += 1
+            if stop["now"] or small_gain or not secant_steps or stop["secants"] >= secant_steps:
+                differenced(coords, sim, state)
+                jacobians[0] += 1
+            else:
+                secant(coords, sim, state)
+        else:
+            jacobians[0] += 1
+        stop["at"] = (coords, sim)
         X = _design(problem, sim, errs)
         _, _, _, H_inv = _objective_at(problem, sim, coords, tol, offset_sd, errs)
         sw = np.sqrt(problem.W)
@@ -616,12 +647,33 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
     fit.history = [{"evaluations": fit.n_sims, "objective": best["objective"], "chi2": best["chi2"]}]
     if best["chi2"] >= AT_NOISE * problem.n_weighted and len(active):
         least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=tol[active], method="trf",
-                      ftol=UPDATE_RTOL, xtol=1e-3, gtol=1e-8, max_nfev=4 * max_jacobians, callback=callback)
+                      ftol=UPDATE_RTOL if not secant_steps else 1e-10, xtol=1e-3, gtol=1e-8,
+                      max_nfev=4 * max_jacobians * (1 + secant_steps), callback=callback)
     fit.coords, fit.sim, fit.state = best["coords"], best["sim"], best["state"]
     fit.nuisance, fit.objective, fit.chi2 = best["nuisance"], best["objective"], best["chi2"]
     fit.history.append({"evaluations": fit.n_sims, "jacobians": jacobians[0], "objective": fit.objective,
                         "chi2": fit.chi2})
     return fit
+
+
+def _secant_update(sens, active, tol, step, change):
+    """Broyden's update of the active sensitivities so that they reproduce the step just taken.
+
+    ``step`` (k,) moved the coordinates and ``change`` (n, c) is what the
+    simulation did; the least change to the sensitivities that maps the one
+    onto the other, measured per tolerance (the coordinates' units differ
+    by orders of magnitude). Returns a new list.
+    """
+    u = step[active] / tol[active]
+    uu = float(u @ u)
+    out = list(sens)
+    if uu == 0.0:
+        return out
+    predicted = sum(sens[i] * step[i] for i in active)
+    miss = (change - predicted) / uu
+    for j, i in enumerate(active):
+        out[i] = sens[i] + miss * (u[j] / tol[i])
+    return out
 
 
 def _prior_rows(nuis, coords, tol, offset_sd, errs):
