@@ -31,7 +31,7 @@ import numpy as np
 from scipy.sparse import csc_matrix, diags
 from scipy.sparse.linalg import spsolve
 
-__all__ = ["BundleResult", "column_groups", "sparse_jacobian", "levenberg_marquardt"]
+__all__ = ["BundleResult", "column_groups", "sparse_jacobian", "levenberg_marquardt", "BlockArrowSolver"]
 
 _EPS = np.finfo(float).eps
 # The damping multiplier's range: below, Gauss-Newton; above, the step is nil.
@@ -63,18 +63,23 @@ def column_groups(sparsity):
     """
     S = csc_matrix(sparsity)
     m, n = S.shape
-    taken = []  # per group: rows some column of it touches
+    # Per row, a bit per group some column touching it already belongs to (first fit: the lowest free
+    # group), 64 groups to a word.
+    taken = np.zeros((m, 1), dtype=np.uint64)
     group = np.empty(n, dtype=int)
     for j in range(n):
         rows = S.indices[S.indptr[j]:S.indptr[j + 1]]
-        for g, used in enumerate(taken):
-            if not used[rows].any():
-                break
+        used = np.bitwise_or.reduce(taken[rows], axis=0) if rows.size else np.zeros(taken.shape[1], np.uint64)
+        free = ~used
+        word = int(np.argmax(free != 0)) if free.any() else taken.shape[1]
+        if word == taken.shape[1]:
+            taken = np.hstack([taken, np.zeros((m, 1), dtype=np.uint64)])
+            bit = 0
         else:
-            g = len(taken)
-            taken.append(np.zeros(m, dtype=bool))
-        taken[g][rows] = True
-        group[j] = g
+            low = int(free[word])
+            bit = (low & -low).bit_length() - 1
+        taken[rows, word] |= np.uint64(1 << bit)
+        group[j] = 64 * word + bit
     return group
 
 
@@ -117,7 +122,62 @@ def _soft_l1_cost(f, f_scale):
     return float(f_scale**2 * np.sum(np.sqrt(1.0 + z) - 1.0))  # 0.5 f_scale^2 sum rho(z)
 
 
-def levenberg_marquardt(fun, x0, sparsity, f_scale, ftol=1e-8, xtol=1e-10, max_iter=100):
+class BlockArrowSolver:
+    """Solves ``(A + diag(shift)) x = b`` for normal matrices whose local unknowns form diagonal blocks.
+
+    The unknowns ``start`` to ``stop`` are consecutive blocks of ``size``
+    that share no residual with one another (a wand frame's); every other
+    unknown is global (cameras, L-frame). Eliminating the blocks leaves the
+    global unknowns' Schur complement, dense and small.
+
+    Parameters
+    ----------
+    sparsity : scipy.sparse matrix (m, n)
+        The Jacobian's pattern: checked to have that shape.
+    start, stop, size : int
+
+    Raises
+    ------
+    ValueError
+        Some residual touches two blocks.
+    """
+
+    def __init__(self, sparsity, start, stop, size):
+        n = sparsity.shape[1]
+        if not (0 <= start <= stop <= n and (stop - start) % size == 0):
+            raise ValueError(f"blocks of {size} from {start} to {stop} do not tile {n} unknowns")
+        pattern = csc_matrix(sparsity, dtype=float)
+        local = pattern[:, start:stop]
+        touched = (local.T @ local).tocoo()
+        if np.any(touched.row // size != touched.col // size):
+            raise ValueError("a residual touches two blocks: the normal matrix is not block-diagonal there")
+        self.size = size
+        self.local = np.arange(start, stop)
+        self.shared = np.r_[np.arange(start), np.arange(stop, n)]
+
+    def solve(self, A, shift, b):
+        """``x`` (n,) with ``(A + diag(shift)) x = b``; ``A`` sparse (n, n), symmetric."""
+        A = csc_matrix(A)
+        p, c, k = self.local, self.shared, self.size
+        nb = p.size // k
+        Acc = A[c][:, c].toarray() + np.diag(shift[c])
+        Apc = A[p][:, c].toarray().reshape(nb, k, c.size)
+        App = A[p][:, p].tocoo()
+        blocks = np.zeros((nb, k, k))
+        blocks[App.row // k, App.row % k, App.col % k] = App.data
+        blocks[:, np.arange(k), np.arange(k)] += shift[p].reshape(nb, k)
+        # Each block's solve against its coupling columns and its right-hand side at once.
+        both = np.linalg.solve(blocks, np.concatenate([Apc, b[p].reshape(nb, k, 1)], axis=2))
+        Y, z = both[:, :, :-1].reshape(p.size, c.size), both[:, :, -1].ravel()
+        Apc = Apc.reshape(p.size, c.size)
+        xc = np.linalg.solve(Acc - Apc.T @ Y, b[c] - Apc.T @ z)
+        x = np.empty(A.shape[0])
+        x[c] = xc
+        x[p] = z - Y @ xc
+        return x
+
+
+def levenberg_marquardt(fun, x0, sparsity, f_scale, ftol=1e-8, xtol=1e-10, max_iter=100, blocks=None):
     """Minimise the soft-L1 cost of ``fun``'s residuals by damped, reweighted Gauss-Newton.
 
     Parameters
@@ -133,12 +193,16 @@ def levenberg_marquardt(fun, x0, sparsity, f_scale, ftol=1e-8, xtol=1e-10, max_i
         Relative decrease of the cost, and relative step, below which it stops.
     max_iter : int
         Most Jacobians.
+    blocks : (start, stop, size), optional
+        Unknowns that form independent blocks (``BlockArrowSolver``): the
+        steps are solved by their Schur complement.
 
     Returns
     -------
     BundleResult
     """
     sparsity = csc_matrix(sparsity).sorted_indices()  # once: each Jacobian reads it by columns
+    arrow = BlockArrowSolver(sparsity, *blocks) if blocks is not None else None
     groups = column_groups(sparsity)
     n_groups = int(groups.max()) + 1 if groups.size else 0
     x = np.asarray(x0, float).copy()
@@ -155,7 +219,7 @@ def levenberg_marquardt(fun, x0, sparsity, f_scale, ftol=1e-8, xtol=1e-10, max_i
         g = Jw.T @ f
         d = np.maximum(A.diagonal(), 1e-12 * max(A.diagonal().max(), 1.0))
         while True:
-            dx = spsolve(A + diags(lam * d, format="csc"), -g)
+            dx = arrow.solve(A, lam * d, -g) if arrow is not None else spsolve(A + diags(lam * d, format="csc"), -g)
             x_new = x + dx
             f_new = fun(x_new)
             nfev += 1

@@ -474,7 +474,7 @@ def _adjust(problem, x0, f_scale):
     # 15x slower so): one thread.
     with threadpool_limits(1, user_api="blas"):
         return levenberg_marquardt(problem.residuals, x0, problem.sparsity(), f_scale, ftol=_FTOL, xtol=1e-10,
-                                   max_iter=_MAX_ITER)
+                                   max_iter=_MAX_ITER, blocks=(problem.o_frame, problem.o_lframe, 5))
 
 
 # ------------------------------------------------------------------ the API

@@ -12,7 +12,7 @@ import pytest
 from scipy.optimize import least_squares
 from scipy.sparse import lil_matrix
 
-from dragline.capture._bundle import column_groups, levenberg_marquardt, sparse_jacobian
+from dragline.capture._bundle import BlockArrowSolver, column_groups, levenberg_marquardt, sparse_jacobian
 
 N_FRAMES, PER_FRAME = 40, 6
 
@@ -91,3 +91,32 @@ def test_the_loss_discounts_outliers():
     plain = least_squares(residuals, x0, method="trf")
     truth_shared = np.array([1.3, -0.4, 0.2])
     assert np.max(np.abs(robust.x[:3] - truth_shared)) < 0.5 * np.max(np.abs(plain.x[:3] - truth_shared))
+
+
+def test_the_block_solver_solves_the_damped_normal_equations():
+    residuals, sparsity, x0 = _problem(12)
+    J = sparse_jacobian(residuals, x0, residuals(x0), sparsity, column_groups(sparsity))
+    A = (J.T @ J).tocsc()
+    rng = np.random.default_rng(1)
+    shift, b = rng.uniform(1e-3, 1.0, x0.size), rng.normal(size=x0.size)
+    x = BlockArrowSolver(sparsity, 3, x0.size, 2).solve(A, shift, b)
+    dense = np.linalg.solve(A.toarray() + np.diag(shift), b)
+    np.testing.assert_allclose(x, dense, rtol=1e-9, atol=1e-12 * np.abs(dense).max())
+
+
+def test_the_minimum_is_the_same_with_the_block_solver():
+    residuals, sparsity, x0 = _problem(12)
+    lu = levenberg_marquardt(residuals, x0, sparsity, f_scale=0.05, ftol=1e-12, xtol=1e-12)
+    blocks = levenberg_marquardt(residuals, x0, sparsity, f_scale=0.05, ftol=1e-12, xtol=1e-12,
+                                 blocks=(3, x0.size, 2))
+    assert blocks.cost == pytest.approx(lu.cost, rel=1e-10)
+    assert np.max(np.abs(blocks.x - lu.x)) < 1e-8
+
+
+def test_blocks_that_share_a_residual_are_refused():
+    _, sparsity, x0 = _problem(0)
+    # Blocks of four join two frames' unknowns that no residual shares: fine. Blocks offset by one
+    # split each frame's pair, whose residuals then touch two blocks.
+    BlockArrowSolver(sparsity, 3, x0.size, 4)
+    with pytest.raises(ValueError, match="two blocks"):
+        BlockArrowSolver(sparsity, 4, x0.size - 1, 2)
