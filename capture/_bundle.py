@@ -133,7 +133,7 @@ class BlockArrowSolver:
     Parameters
     ----------
     sparsity : scipy.sparse matrix (m, n)
-        The Jacobian's pattern: checked to have that shape.
+        The Jacobian's pattern: no residual may touch two blocks.
     start, stop, size : int
 
     Raises
@@ -156,7 +156,10 @@ class BlockArrowSolver:
         self.shared = np.r_[np.arange(start), np.arange(stop, n)]
 
     def solve(self, A, shift, b):
-        """``x`` (n,) with ``(A + diag(shift)) x = b``; ``A`` sparse (n, n), symmetric."""
+        """``x`` (n,) with ``(A + diag(shift)) x = b``; ``A`` sparse (n, n), symmetric.
+
+        A singular system gives NaN, as a failed step (the damping then grows).
+        """
         A = csc_matrix(A)
         p, c, k = self.local, self.shared, self.size
         nb = p.size // k
@@ -166,12 +169,15 @@ class BlockArrowSolver:
         blocks = np.zeros((nb, k, k))
         blocks[App.row // k, App.row % k, App.col % k] = App.data
         blocks[:, np.arange(k), np.arange(k)] += shift[p].reshape(nb, k)
-        # Each block's solve against its coupling columns and its right-hand side at once.
-        both = np.linalg.solve(blocks, np.concatenate([Apc, b[p].reshape(nb, k, 1)], axis=2))
-        Y, z = both[:, :, :-1].reshape(p.size, c.size), both[:, :, -1].ravel()
-        Apc = Apc.reshape(p.size, c.size)
-        xc = np.linalg.solve(Acc - Apc.T @ Y, b[c] - Apc.T @ z)
-        x = np.empty(A.shape[0])
+        x = np.full(A.shape[0], np.nan)
+        try:
+            # Each block's solve against its coupling columns and its right-hand side at once.
+            both = np.linalg.solve(blocks, np.concatenate([Apc, b[p].reshape(nb, k, 1)], axis=2))
+            Y, z = both[:, :, :-1].reshape(p.size, c.size), both[:, :, -1].ravel()
+            Apc = Apc.reshape(p.size, c.size)
+            xc = np.linalg.solve(Acc - Apc.T @ Y, b[c] - Apc.T @ z)
+        except np.linalg.LinAlgError:
+            return x
         x[c] = xc
         x[p] = z - Y @ xc
         return x

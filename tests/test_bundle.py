@@ -120,3 +120,12 @@ def test_blocks_that_share_a_residual_are_refused():
     BlockArrowSolver(sparsity, 3, x0.size, 4)
     with pytest.raises(ValueError, match="two blocks"):
         BlockArrowSolver(sparsity, 4, x0.size - 1, 2)
+
+
+def test_a_singular_system_gives_nan_as_a_failed_step():
+    _, sparsity, x0 = _problem(0)
+    A = (sparsity.T @ sparsity).astype(float).tolil()
+    A[5, :] = 0.0  # a frame's unknown no residual constrains, and no damping
+    A[:, 5] = 0.0
+    x = BlockArrowSolver(sparsity, 3, x0.size, 2).solve(A, np.zeros(x0.size), np.ones(x0.size))
+    assert np.isnan(x).all()
