@@ -17,16 +17,14 @@ residual by less than ``SCREEN`` stays nominal and is reported not
 identifiable. The active coordinates are then fitted by scipy's bounded
 trust-region least squares (``trf``, scaled by the tolerances, no parameter
 beyond ``BOUND_TOLERANCES``) on the chi2 of ``_hypotheses`` plus the
-priors, with our own parallel finite-difference Jacobian, between whose
-renewals up to ``SECANT_STEPS`` steps use Broyden's secant updates of it
-(``_trust_region``). The nuisance - one constant offset per channel (marker placement and
+priors, with our own parallel finite-difference Jacobian renewed at every
+step. The nuisance - one constant offset per channel (marker placement and
 calibration: prior ``OFFSET_PRIOR``, so a static offset goes to the
 parameters when they can make it within tolerance), the clock shift and the
 model-error amplitudes (below) - is linear and is projected out at every
 evaluation (variable projection). It stops when chi2 is within
-``AT_NOISE`` of its noise expectation, when a step on differenced
-sensitivities gains less than ``UPDATE_RTOL``, or after ``MAX_JACOBIANS``
-differenced ones. Uncertainties come from the
+``AT_NOISE`` of its noise expectation, when a step gains less than
+``UPDATE_RTOL``, or after ``MAX_JACOBIANS``. Uncertainties come from the
 posterior covariance, scaled by the residual's dispersion; a parameter is
 *identifiable* when the recording at least halves its prior standard
 deviation.
@@ -75,8 +73,6 @@ OFFSET_FINDING = {"position": 0.010, "angle": math.radians(2.0), "rope_length": 
 MAX_JACOBIANS = 8
 # Updating stops when a step gains less than this share of the objective.
 UPDATE_RTOL = 0.01
-# Between differenced Jacobians, at most this many steps on secant (Broyden) updates of the sensitivities.
-SECANT_STEPS = 3
 # Updating stops once chi2 is within this factor of its noise expectation.
 AT_NOISE = 1.05
 # Finite-difference step, in tolerances. A simulation is a smooth function of
@@ -357,12 +353,9 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     absorbs a friction's decay; masses and the boom point drift to their
     bounds). With the mechanism in every simulation, the trust-region fit of
     the parameters starts again from the better of the nominal rig and the
-    updated one; its first steps take the updated model's sensitivities
-    (without the mechanism) as a secant model would, differenced afresh when
-    a step on them gains little (on the session ``dragline run`` makes, 16
-    simulations fewer than differencing at the start, and chi2 3.60e5
-    against 3.73e5); then the mechanism's main parameter is searched again
-    on top of the jointly updated rig.
+    updated one, the sensitivities recomputed at every step; then
+    the mechanism's main parameter is searched again on top of the jointly
+    updated rig.
 
     Parameters
     ----------
@@ -412,11 +405,11 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
         if not options:
             return None
         _, coords, sim, state = min(options, key=lambda o: o[0])
-        # The updated model's sensitivities, without the mechanism and perhaps from the other start,
-        # begin the fit as a secant model would: differenced only when a step on them gains little.
-        fit = _trust_region(problem, pool, _Fit(coords, sim, state, list(update["sensitivities"])), active, tol,
-                            offset_sd, errs, MAX_JACOBIANS, lambda m: note(f"joint refit with {mechanism.name}: {m}"),
-                            final_jacobian=False, exact_start=False)
+        sens, _ = _sensitivities(pool, coords, active, tol, sim, state, list(update["sensitivities"]))
+        n_sims += len(active)
+        fit = _trust_region(problem, pool, _Fit(coords, sim, state, sens), active, tol, offset_sd, errs,
+                            MAX_JACOBIANS, lambda m: note(f"joint refit with {mechanism.name}: {m}"),
+                            final_jacobian=False)
         n_sims += fit.n_sims
     finally:
         pool.close()
@@ -503,8 +496,7 @@ class _Fit:
     n_sims: int = 0
 
 
-def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobians, note, final_jacobian=True,
-                  secant_steps=SECANT_STEPS, exact_start=True):
+def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobians, note, final_jacobian=True):
     """Bounded trust-region least squares on the active coordinates from ``fit``.
 
     scipy's ``least_squares`` (``trf``, ``x_scale`` the tolerances, so its
@@ -527,29 +519,12 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
     that would not have idled. ``fit.sim`` is taken as the simulation at
     ``fit.coords``, not simulated again.
 
-    Between differenced Jacobians, up to ``secant_steps`` steps take
-    Broyden's update of the sensitivities instead (``_secant_update``: the
-    least change, per tolerance, that reproduces the step just taken), one
-    simulation a step where a Jacobian costs one per active parameter; the
-    other slots difference the stalest sensitivities beside each trial
-    point, which replace their secant estimates. A secant step that gains
-    less than ``UPDATE_RTOL`` says the secant model is spent: the
-    sensitivities are differenced there and the fit goes on. (On the
-    session ``dragline run`` makes, updating reached chi2 4.195e7 in 60
-    simulations with three secant steps to a Jacobian, against 4.214e7 in
-    112 differencing at every step; with eight, the secant model led it
-    astray and it stopped at 4.52e7.)
-
     The stops are applied here, where scipy's would come one Jacobian late
     (it differentiates at an accepted point before it looks at the gain):
-    at the noise, after ``max_jacobians`` differenced ones, or when a step
-    on differenced sensitivities lowered the objective by less than
-    ``UPDATE_RTOL``; the sensitivities where it stops are differenced
-    (the candidates' regressors and the covariance need them). With
-    ``final_jacobian`` False (a caller that needs no sensitivities at the
-    end: the joint refit), they are not computed there. ``exact_start``
-    False says the given sensitivities are borrowed (another point or
-    model): a small gain on them is not a stop.
+    at the noise, after ``max_jacobians``, or when an accepted step lowered
+    the objective by less than ``UPDATE_RTOL``. With ``final_jacobian``
+    False (a caller that needs no sensitivities at the end: the joint
+    refit), the Jacobian at the point where it stops is not computed.
     """
     from scipy.optimize import least_squares
 
@@ -562,10 +537,7 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
     best = {"objective": math.inf}
     jacobians = [0]
     objectives = {}
-    # The stop decided at an accepted point; its objective; trf's J; whether the sensitivities are
-    # differences at the current point (else secant updates of them); the point they belong to.
-    stop = {"now": False, "last": None, "J": None, "exact": exact_start, "secants": 0, "at": None}
-    stale = {int(i): 0 for i in active}  # secant steps since each sensitivity was last differenced
+    stop = {"now": False, "last": None, "J": None}  # the stop decided at an accepted point; its objective; trf's J
 
     def full(xa):
         coords = base.copy()
@@ -577,9 +549,8 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
         key = coords.tobytes()
         if key not in cache:
             guess = best.get("state", fit.state)
-            # Before the first Jacobian the sensitivities are given: nothing to run ahead. The
-            # stalest sensitivities first (all equal after a differenced Jacobian: in order).
-            early = sorted(active, key=lambda i: -stale[int(i)])[:spare] if jacobians[0] > 0 else []
+            # Before the first Jacobian the sensitivities are given: nothing to run ahead.
+            early = list(active[:spare]) if jacobians[0] > 0 else []
             out = pool.map(_rig_job, [(coords, None, None, guess)] + [_difference_job(coords, i, tol, guess)
                                                                         for i in early])
             cache[key] = out[0]
@@ -605,56 +576,21 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
         n_rows[:] = [len(r)]
         return r
 
-    def differenced(coords, sim, state):
-        known = ahead.pop(coords.tobytes(), {})
-        fit.sens, bad = _sensitivities(pool, coords, active, tol, sim, state, fit.sens, known)
-        fit.failed = sorted(set(fit.failed) | set(bad))
-        fit.n_sims += len(active) - len(known)
-        stale.update({int(i): 0 for i in active})
-        stop.update(exact=True, secants=0)
-
-    def secant(coords, sim, state):
-        previous, sim_before = stop["at"]
-        fit.sens = _secant_update(fit.sens, active, tol, coords - previous, sim - sim_before)
-        known = ahead.pop(coords.tobytes(), {})
-        fit.sens, bad = _sensitivities(pool, coords, list(known), tol, sim, state, fit.sens, known)
-        fit.failed = sorted(set(fit.failed) | set(bad))
-        stale.update({int(i): stale[int(i)] + 1 for i in active})
-        stale.update({int(i): 0 for i in known})
-        stop.update(exact=False, secants=stop["secants"] + 1)
-
     def jac(xa):
         coords, (sim, state) = simulated(xa)
-        if stop["at"] is not None and np.array_equal(coords, stop["at"][0]):
-            # A restart where the last Jacobian was taken: no step, no gain to judge.
-            if not stop["exact"]:
-                differenced(coords, sim, state)
-                jacobians[0] += 1
-                stop["J"] = projected(coords, sim)
-            return stop["J"]
         # trf asks for a Jacobian only at an accepted point: the step's gain is known here.
         obj, last = objectives[coords.tobytes()], stop["last"]
         stop["last"] = obj
-        small_gain = last is not None and last - obj < UPDATE_RTOL * last
-        # A small gain ends the fit only when the step came from differenced sensitivities: after
-        # a secant step it says the secant model is spent, and the sensitivities are differenced.
         stop["now"] = jacobians[0] >= max_jacobians - 1 or best["chi2"] < AT_NOISE * problem.n_weighted or (
-            small_gain and stop["exact"])
+            last is not None and last - obj < UPDATE_RTOL * last)
         if stop["now"] and not final_jacobian and stop["J"] is not None:
             return stop["J"]  # never used: the callback ends the fit before another step
         if jacobians[0] > 0:
-            if stop["now"] or small_gain or not secant_steps or stop["secants"] >= secant_steps:
-                differenced(coords, sim, state)
-                jacobians[0] += 1
-            else:
-                secant(coords, sim, state)
-        else:
-            jacobians[0] += 1
-        stop["at"] = (coords, sim)
-        stop["J"] = projected(coords, sim)
-        return stop["J"]
-
-    def projected(coords, sim):
+            known = ahead.pop(coords.tobytes(), {})
+            fit.sens, bad = _sensitivities(pool, coords, active, tol, sim, state, fit.sens, known)
+            fit.failed = sorted(set(fit.failed) | set(bad))
+            fit.n_sims += len(active) - len(known)
+        jacobians[0] += 1
         X = _design(problem, sim, errs)
         _, _, _, H_inv = _objective_at(problem, sim, coords, tol, offset_sd, errs)
         sw = np.sqrt(problem.W)
@@ -665,7 +601,8 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
             unit = np.zeros(k)
             unit[i] = 1.0
             cols.append(np.r_[-(v - X @ a), _prior_rows(-a, unit, tol, offset_sd, errs)])
-        return np.stack(cols, axis=1)
+        stop["J"] = np.stack(cols, axis=1)
+        return stop["J"]
 
     def callback(intermediate_result):  # noqa: ARG001 (scipy passes the iterate)
         note(f"evaluation {fit.n_sims}, chi2 {best['chi2']:.4g}")
@@ -677,47 +614,14 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
     if fun(x0) is None:
         return fit
     fit.history = [{"evaluations": fit.n_sims, "objective": best["objective"], "chi2": best["chi2"]}]
-    budget = 4 * max_jacobians * (1 + secant_steps)  # trial points
-    while budget > 0 and best["chi2"] >= AT_NOISE * problem.n_weighted and len(active):
-        out = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=tol[active], method="trf",
-                            ftol=UPDATE_RTOL if not secant_steps else 1e-10, xtol=1e-3, gtol=1e-8,
-                            max_nfev=budget, callback=callback)
-        budget -= out.nfev
-        if out.status == -2 or stop["exact"]:
-            break
-        # scipy stopped on secant sensitivities (its trust region shrank about a poor secant model
-        # until the step was below xtol): they are differenced where it stood, and the fit goes on.
-        x0 = stop["at"][0][active]
-    if final_jacobian and stop["at"] is not None and not (
-            stop["exact"] and np.array_equal(stop["at"][0], best["coords"])):
-        # The budget ran out on secant sensitivities, or the best point is not trf's last: differenced there.
-        differenced(best["coords"], best["sim"], best["state"])
-        jacobians[0] += 1
+    if best["chi2"] >= AT_NOISE * problem.n_weighted and len(active):
+        least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=tol[active], method="trf",
+                      ftol=UPDATE_RTOL, xtol=1e-3, gtol=1e-8, max_nfev=4 * max_jacobians, callback=callback)
     fit.coords, fit.sim, fit.state = best["coords"], best["sim"], best["state"]
     fit.nuisance, fit.objective, fit.chi2 = best["nuisance"], best["objective"], best["chi2"]
     fit.history.append({"evaluations": fit.n_sims, "jacobians": jacobians[0], "objective": fit.objective,
                         "chi2": fit.chi2})
     return fit
-
-
-def _secant_update(sens, active, tol, step, change):
-    """Broyden's update of the active sensitivities so that they reproduce the step just taken.
-
-    ``step`` (k,) moved the coordinates and ``change`` (n, c) is what the
-    simulation did; the least change to the sensitivities that maps the one
-    onto the other, measured per tolerance (the coordinates' units differ
-    by orders of magnitude). Returns a new list.
-    """
-    u = step[active] / tol[active]
-    uu = float(u @ u)
-    out = list(sens)
-    if uu == 0.0:
-        return out
-    predicted = sum(sens[i] * step[i] for i in active)
-    miss = (change - predicted) / uu
-    for j, i in enumerate(active):
-        out[i] = sens[i] + miss * (u[j] / tol[i])
-    return out
 
 
 def _prior_rows(nuis, coords, tol, offset_sd, errs):
