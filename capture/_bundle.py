@@ -155,27 +155,37 @@ class BlockArrowSolver:
         self.local = np.arange(start, stop)
         self.shared = np.r_[np.arange(start), np.arange(stop, n)]
 
-    def solve(self, A, shift, b):
-        """``x`` (n,) with ``(A + diag(shift)) x = b``; ``A`` sparse (n, n), symmetric.
+    def split(self, A):
+        """The parts of ``A`` (sparse (n, n), symmetric) a solve reads: ``(A_cc, A_pc, blocks)``, dense.
 
-        A singular system gives NaN, as a failed step (the damping then grows).
+        Taken once per matrix: a damped step that fails is solved again with
+        more damping on the same matrix.
         """
         A = csc_matrix(A)
         p, c, k = self.local, self.shared, self.size
         nb = p.size // k
-        Acc = A[c][:, c].toarray() + np.diag(shift[c])
-        Apc = A[p][:, c].toarray().reshape(nb, k, c.size)
         App = A[p][:, p].tocoo()
         blocks = np.zeros((nb, k, k))
         blocks[App.row // k, App.row % k, App.col % k] = App.data
+        return A[c][:, c].toarray(), A[p][:, c].toarray().reshape(nb, k, c.size), blocks
+
+    def solve(self, A, shift, b, parts=None):
+        """``x`` (n,) with ``(A + diag(shift)) x = b``; ``parts``: ``split(A)`` when already taken.
+
+        A singular system gives NaN, as a failed step (the damping then grows).
+        """
+        Acc, Apc, blocks = self.split(A) if parts is None else parts
+        p, c, k = self.local, self.shared, self.size
+        nb = p.size // k
+        blocks = blocks.copy()
         blocks[:, np.arange(k), np.arange(k)] += shift[p].reshape(nb, k)
-        x = np.full(A.shape[0], np.nan)
+        x = np.full(b.size, np.nan)
         try:
             # Each block's solve against its coupling columns and its right-hand side at once.
             both = np.linalg.solve(blocks, np.concatenate([Apc, b[p].reshape(nb, k, 1)], axis=2))
             Y, z = both[:, :, :-1].reshape(p.size, c.size), both[:, :, -1].ravel()
             Apc = Apc.reshape(p.size, c.size)
-            xc = np.linalg.solve(Acc - Apc.T @ Y, b[c] - Apc.T @ z)
+            xc = np.linalg.solve(Acc + np.diag(shift[c]) - Apc.T @ Y, b[c] - Apc.T @ z)
         except np.linalg.LinAlgError:
             return x
         x[c] = xc
@@ -224,8 +234,10 @@ def levenberg_marquardt(fun, x0, sparsity, f_scale, ftol=1e-8, xtol=1e-10, max_i
         A = (J.T @ Jw).tocsc()
         g = Jw.T @ f
         d = np.maximum(A.diagonal(), 1e-12 * max(A.diagonal().max(), 1.0))
+        parts = arrow.split(A) if arrow is not None else None
         while True:
-            dx = arrow.solve(A, lam * d, -g) if arrow is not None else spsolve(A + diags(lam * d, format="csc"), -g)
+            dx = (arrow.solve(A, lam * d, -g, parts) if arrow is not None
+                  else spsolve(A + diags(lam * d, format="csc"), -g))
             x_new = x + dx
             f_new = fun(x_new)
             nfev += 1
