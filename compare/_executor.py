@@ -156,6 +156,19 @@ def _dask_task(initializer, key, initargs, fn, job):
     return fn(*job)
 
 
+def _cluster_size(client):
+    """(workers, threads) the scheduler has now.
+
+    Asked of the scheduler itself: ``client.scheduler_info()`` returns a cache that the client's
+    periodic update may overwrite, between the fetch and the return, with a reply that lists no
+    workers, which read as a cluster of one slot.
+    """
+    info = client.sync(client.scheduler.identity)
+    workers = info.get("workers", {})
+    return (int(info.get("n_workers", len(workers))),
+            int(info.get("total_threads", sum(int(w.get("nthreads", 1)) for w in workers.values()))))
+
+
 class _DaskSession:
     def __init__(self, client, address, initializer, initargs):
         self._client = client
@@ -170,8 +183,7 @@ class _DaskSession:
     @property
     def slots(self):
         """Tasks the cluster runs at once now (its workers' threads, at least 1)."""
-        workers = self._client.scheduler_info().get("workers", {})
-        return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
+        return max(1, _cluster_size(self._client)[1])
 
     def map(self, fn, jobs, each=None):
         futures = [self._client.submit(_dask_task, self._initializer, self._key, self._initargs, fn, tuple(job),
@@ -202,7 +214,7 @@ class _DaskSession:
                 return
             except TimeoutError:  # not done yet: is anyone still working on it?
                 pass
-            if self._client.scheduler_info().get("workers"):
+            if _cluster_size(self._client)[0]:
                 alone_since = None
             elif alone_since is None:
                 alone_since = time.monotonic()
@@ -246,7 +258,7 @@ class DaskExecutor(Executor):
 
     def describe(self):
         return {"kind": "dask", "address": self.address,
-                "workers": len(self.client.scheduler_info().get("workers", {}))}
+                "workers": _cluster_size(self.client)[0]}
 
 
 def executor_from(workers=2, scheduler=None):

@@ -9,6 +9,7 @@ tests/test_diagnose.py (``aero_diagnosis``).
 
 import os
 
+import dask
 import numpy as np
 import pytest
 
@@ -69,6 +70,21 @@ def test_a_session_says_how_many_tasks_run_at_once(cluster, context):
         session = executor.open(_init, (context,))
         try:
             assert session.slots == slots
+        finally:
+            session.close()
+
+
+def test_the_slot_count_holds_while_the_client_refreshes_its_cache(cluster, context):
+    # The client's periodic refresh of its scheduler cache lists no workers; read back from that
+    # cache, a cluster of two once read as one slot (a CI run failed on it). A fast refresh makes
+    # that race frequent (about 1 read in 15 with the cache), so every read must still say 2.
+    c, _ = cluster
+    with dask.config.set({"distributed.client.scheduler-info-interval": "5ms"}), distributed.Client(c) as client:
+        executor = DaskExecutor(client=client)
+        session = executor.open(_init, (context,))
+        try:
+            assert [session.slots for _ in range(300)] == [2] * 300
+            assert [executor.describe()["workers"] for _ in range(100)] == [2] * 100
         finally:
             session.close()
 
