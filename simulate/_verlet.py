@@ -52,11 +52,11 @@ from ._kernel import (
     _offsets,
     _segment_lengths,
     dissipate,
+    _rhs,
     rhs,
-    rhs_maxwell_update,
 )
 
-__all__ = ["VERLET_IMAGINARY_LIMIT", "verlet_scratch", "verlet_step", "element_stretch"]
+__all__ = ["VERLET_IMAGINARY_LIMIT", "verlet_scratch", "verlet_step", "verlet_steps", "element_stretch"]
 
 # Kick-drift-kick is stable for h omega < 2 on an undamped oscillator.
 VERLET_IMAGINARY_LIMIT = 2.0
@@ -136,7 +136,27 @@ def verlet_scratch(t, y, m, work):
 
 
 @njit(cache=True, **NO_REFCOUNT)
+def verlet_steps(t, h, n, y, acc, y_eval, m, work):
+    """``n`` steps of length h from (t, y), in place (``verlet_step`` each).
+
+    One call for a record interval's steps, with the step and its
+    right-hand side inlined: a call that passes the model and its scratch
+    arrays (``m``, ``work``: some 80 arrays, flattened into arguments) cost
+    about 0.15 us, twice a step (the step, then its right-hand side), of a
+    1.9 us step.
+    """
+    for j in range(n):
+        _step(t + j * h, h, y, acc, y_eval, m, work)
+
+
+@njit(cache=True, **NO_REFCOUNT)
 def verlet_step(t, h, y, acc, y_eval, m, work):
+    """One kick-drift-kick step of length h from (t, y), in place (see ``_step``)."""
+    _step(t, h, y, acc, y_eval, m, work)
+
+
+@njit(cache=True, inline="always")
+def _step(t, h, y, acc, y_eval, m, work):
     """One kick-drift-kick step of length h from (t, y), in place.
 
     ``acc`` holds the accelerations at (t, y) on entry and at (t + h, y) on
@@ -149,9 +169,13 @@ def verlet_step(t, h, y, acc, y_eval, m, work):
     R = m.ring_seg.shape[0]
     o_part, o_vel, o_F, o_ring = _offsets(m)
     half = 0.5 * h
-    _kick(y, acc, half, nb, o_vel, o_F, o_ring, R)
+    # Kick, drift and the evaluation state (velocities extrapolated to t + h) in one pass per
+    # entry: the same arithmetic as one pass each, about 0.1 us a step less.
     for b in range(nb):
         o = 12 * b
+        for k in range(3):
+            y[o + 3 + k] += half * acc[o + 3 + k]
+            y[o + 9 + k] += half * acc[o + 9 + k]
         for k in range(3):
             y[o + k] += h * y[o + 3 + k]
         roll, pitch, yaw = y[o + 6], y[o + 7], y[o + 8]
@@ -162,15 +186,27 @@ def verlet_step(t, h, y, acc, y_eval, m, work):
         y[o + 6] = roll + h * d0
         y[o + 7] = pitch + h * d1
         y[o + 8] = yaw + h * d2
+        for k in range(12):
+            y_eval[o + k] = y[o + k]
+        for k in range(3):
+            y_eval[o + 3 + k] += half * acc[o + 3 + k]
+            y_eval[o + 9 + k] += half * acc[o + 9 + k]
+    to_vel = o_vel - o_part
     for i in range(o_part, o_vel):
-        y[i] += h * y[i + (o_vel - o_part)]
+        v = y[i + to_vel] + half * acc[i + to_vel]
+        x = y[i] + h * v
+        y[i], y[i + to_vel] = x, v
+        y_eval[i], y_eval[i + to_vel] = x, v + half * acc[i + to_vel]
+    for e in range(o_F, o_ring):
+        y_eval[e] = y[e]
     for rg in range(R):
-        y[o_ring + 2 * rg] += h * y[o_ring + 2 * rg + 1]
-    for i in range(y.shape[0]):
-        y_eval[i] = y[i]
-    _kick(y_eval, acc, half, nb, o_vel, o_F, o_ring, R)  # velocities extrapolated to t + h
+        i = o_ring + 2 * rg
+        v = y[i + 1] + half * acc[i + 1]
+        x = y[i] + h * v
+        y[i], y[i + 1] = x, v
+        y_eval[i], y_eval[i + 1] = x, v + half * acc[i + 1]
     _maxwell_factors(h, m, work)
-    rhs_maxwell_update(t + h, y_eval, acc, m, work)
+    _rhs(t + h, y_eval, acc, m, work, True)  # ``rhs_maxwell_update``, inlined
     for e in range(o_F, o_ring):
         y[e] = y_eval[e]  # the Maxwell forces, advanced in y_eval
     _kick(y, acc, half, nb, o_vel, o_F, o_ring, R)

@@ -115,3 +115,90 @@ def test_dissipation_reads_the_geometry_verlet_left_exactly_as_it_would_compute_
 def test_unknown_integrator_is_refused():
     with pytest.raises(ValueError, match="unknown integrator"):
         simulate(duration=0.01, integrator="euler")
+
+
+def _textbook_step(t, h, y, acc, m, work):
+    """Kick-drift-kick as four separate passes over the state: the reference for the fused step."""
+    from dragline.simulate._verlet import _euler_angle_rates, _euler_angle_rates_trig, _maxwell_factors
+
+    o_part, o_vel, o_F, o_ring = _kernel._offsets(m)
+    vel = np.zeros(y.shape[0], bool)
+    for b in range(m.nb):
+        vel[12 * b + 3:12 * b + 6] = vel[12 * b + 9:12 * b + 12] = True
+    vel[o_vel:o_F] = True
+    vel[o_ring + 1::2] = True
+    y = y.copy()
+    y[vel] += 0.5 * h * acc[vel]
+    for b in range(m.nb):
+        o = 12 * b
+        y[o:o + 3] += h * y[o + 3:o + 6]
+        roll, pitch, yaw = y[o + 6:o + 9]
+        d0, _, d2 = _euler_angle_rates_trig(*work.trig[b], *y[o + 9:o + 12])
+        d = _euler_angle_rates(roll + 0.5 * h * d0, yaw + 0.5 * h * d2, *y[o + 9:o + 12])
+        y[o + 6:o + 9] = roll + h * d[0], pitch + h * d[1], yaw + h * d[2]
+    y[o_part:o_vel] += h * y[o_vel:o_F]
+    y[o_ring::2] += h * y[o_ring + 1::2]
+    y_eval = y.copy()
+    y_eval[vel] += 0.5 * h * acc[vel]
+    acc = acc.copy()
+    _maxwell_factors(h, m, work)
+    _kernel.rhs_maxwell_update(t + h, y_eval, acc, m, work)
+    y[o_F:o_ring] = y_eval[o_F:o_ring]
+    y[vel] += 0.5 * h * acc[vel]
+    return y, acc
+
+
+@pytest.mark.parametrize("physics", [[], ["pulley_friction:mu=0.05"]])
+def test_the_fused_step_is_the_textbook_kick_drift_kick_to_the_bit(physics):
+    # The step does its kick, drift and evaluation copy in one pass per entry
+    # and a record interval's steps in one call: the same arithmetic as the
+    # separate passes, so the same bits (on the dig at full speed, rings sliding).
+    from dragline.simulate._verlet import element_stretch, verlet_scratch, verlet_steps
+
+    res = simulate(duration=5.0, rate_hz=100.0, physics=[parse_physics(p) for p in physics])
+    m = res.model.kernel_tuple()
+    t, y0, h = float(res.time[-1]), res.states[-1], 1e-4
+    work = _kernel.make_work(m)
+    acc, y_eval = verlet_scratch(t, y0, m, work)
+    fused = y0.copy()
+    fused_acc = acc.copy()
+    verlet_steps(t, h, 3, fused, fused_acc, y_eval, m, work)
+    ref_work = _kernel.make_work(m)
+    acc, _ = verlet_scratch(t, y0, m, ref_work)
+    ref = y0.copy()
+    for j in range(3):
+        ref, acc = _textbook_step(t + j * h, h, ref, acc, m, ref_work)
+        if m.has_ring_friction:
+            _kernel.dissipate((t + j * h) + h, ref, h, m, ref_work, True)
+    assert not np.array_equal(ref, y0)
+    np.testing.assert_array_equal(fused, ref)
+    np.testing.assert_array_equal(fused_acc, acc)
+    eps = np.empty_like(work.eps)
+    element_stretch(t + 3 * h, fused, m, work, eps)
+    np.testing.assert_array_equal(work.eps, eps)
+
+
+def test_the_right_hand_side_verlet_calls_gives_the_plain_accelerations():
+    # In Verlet's right-hand side only the accelerations are written (no F_m
+    # rates, no position rates, no element-end velocities gathered): they must
+    # be the plain right-hand side's to the bit at the same state.
+    from dragline.simulate._verlet import element_stretch
+
+    res = simulate(duration=5.0, rate_hz=100.0)
+    m = res.model.kernel_tuple()
+    t, y = float(res.time[-1]), res.states[-1].copy()
+    work = _kernel.make_work(m)
+    element_stretch(float(res.time[-2]), res.states[-2], m, work, work.eps)  # the step's start: F_m moves
+    work.seg_decay[:], work.seg_gain[:] = 0.9, m.seg_kv * 0.95
+    updated, plain = np.zeros_like(y), np.zeros_like(y)
+    y_update = y.copy()
+    _kernel.rhs_maxwell_update(t, y_update, updated, m, work)
+    assert not np.array_equal(y_update, y)  # the Maxwell forces advanced
+    _kernel.rhs(t, y_update, plain, m, _kernel.make_work(m))
+    o_part, o_vel, o_F, o_ring = _kernel._offsets(m)
+    for b in range(m.nb):
+        np.testing.assert_array_equal(updated[12 * b + 3:12 * b + 6], plain[12 * b + 3:12 * b + 6])
+        np.testing.assert_array_equal(updated[12 * b + 9:12 * b + 12], plain[12 * b + 9:12 * b + 12])
+    np.testing.assert_array_equal(updated[o_vel:o_F], plain[o_vel:o_F])
+    np.testing.assert_array_equal(updated[o_ring + 1::2], plain[o_ring + 1::2])
+    assert np.abs(plain[o_vel:o_F]).max() > 0.1  # the accelerations are not trivially zero
