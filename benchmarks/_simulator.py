@@ -135,13 +135,19 @@ def bench_simulate(levels=LEVELS, repeats=5, duration=10.0, moordyn=True):
     for level in levels:
         report[level] = _level_in_process(level, repeats, duration)
     if moordyn:
-        try:
-            from ._moordyn_peer import bench_moordyn
-        except ImportError as exc:  # moordyn is an optional (bench) dependency
-            report["moordyn"] = {"skipped": str(exc)}
-        else:
-            report["moordyn"] = bench_moordyn()
+        report["moordyn"] = moordyn_report()
     return report
+
+
+def moordyn_report():
+    """The MoorDyn comparison's figures, or why it was skipped (the package is an optional extra)."""
+    try:
+        import moordyn  # noqa: F401 - imported where it runs; here only: is it there?
+    except ImportError as exc:
+        return {"skipped": f"{exc}; pip install -e '.[bench]' adds it"}
+    from ._moordyn_peer import bench_moordyn
+
+    return bench_moordyn()
 
 
 def summary_lines(report):
@@ -156,6 +162,8 @@ def summary_lines(report):
                 x = r[name]
                 lines.append(f"  {name:7s} wall {x['wall_s']:.2f} s (x{x['real_time_factor']:.1f} real time)  {x['steps']} steps  "
                              f"error {x['error_bucket_position_mm']:.4f} mm / {x['error_bucket_pitch_deg']:.5f} deg")
+    if "skipped" in report.get("moordyn", {}):
+        lines.append(f"MoorDyn comparison skipped: {report['moordyn']['skipped']}")
     return lines
 
 

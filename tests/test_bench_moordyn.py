@@ -89,3 +89,15 @@ def test_node_positions_agree_after_one_second(moordyn_line):
     tol = 2 * start + 1e-5
     assert np.abs(theirs[-1] - ours[-1]).max() < tol
     assert np.abs(theirs - ours).max() < tol
+
+
+def test_without_moordyn_installed_the_comparison_is_skipped_with_what_to_install(monkeypatch):
+    # MoorDyn is an optional extra: its absence skips the comparison, named, not the whole benchmark.
+    import sys
+
+    from dragline.benchmarks._simulator import moordyn_report, summary_lines
+
+    monkeypatch.setitem(sys.modules, "moordyn", None)  # ``import moordyn`` now raises ImportError
+    report = {"compile": {"compile_s": 1.0, "cold_first_call_s": 2.0}, "moordyn": moordyn_report()}
+    assert "pip install -e '.[bench]'" in report["moordyn"]["skipped"]
+    assert any(line.startswith("MoorDyn comparison skipped") for line in summary_lines(report))
