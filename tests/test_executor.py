@@ -168,3 +168,32 @@ def test_local_workers_and_their_parent_run_one_blas_thread_while_the_pool_is_op
             session.close()
         assert inside == 1 and workers == [1, 1, 1, 1]
         assert _blas_threads() == 2  # given back when the pool closes
+
+
+def test_refining_searches_side_by_side_evaluate_what_one_per_worker_does(cluster, context):
+    # Three searches on two workers: run as threads that hand single simulations to the pool, they
+    # must evaluate exactly the points each search evaluates alone in one process.
+    from dragline.compare.diagnose._hypotheses import Problem, _refine_job, _refine_searches, simulate_channels
+
+    _init(context)
+    truth = simulate_channels("aero_drag", "cd", 2.0, context)
+    sigma = np.array([1e-3, 1e-3, 1e-2, 1e-3])
+    measured = truth + np.random.default_rng(3).normal(size=truth.shape) * sigma
+    problem = Problem(context["time"], measured, sigma, t_stop=0.3)
+    refine = [("aero_drag", "cd", 0.5, 4.0), ("pulley_friction", "mu", 0.01, 0.1),
+              ("pulley_inertia", "inertia", 1e-4, 1e-3)]
+    _init(dict(context, problem=problem))
+    alone = [_refine_job(*job) for job in refine]
+    _, client = cluster
+    for executor in (LocalExecutor(2), DaskExecutor(client=client)):
+        session = executor.open(_init, (dict(context, problem=problem),))
+        try:
+            assert session.slots == 2
+            together = _refine_searches(session, problem, refine)
+        finally:
+            session.close()
+        assert [name for name, _ in together] == [name for name, _ in alone]
+        for (_, points), (_, expected) in zip(together, alone):
+            assert [v for v, _ in points] == [v for v, _ in expected] and len(points) >= 3
+            for (_, a), (_, b) in zip(points, expected):
+                np.testing.assert_array_equal(a, b)

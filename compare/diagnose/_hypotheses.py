@@ -417,13 +417,17 @@ def _grid_job(name, main, value):
 
 
 def _refine_job(name, main, lo, hi):
-    """Bounded Brent search on ln p in [lo, hi]; every evaluated point comes back."""
-    problem = _CTX["problem"]
+    """Bounded Brent search on ln p in [lo, hi] in this process; every evaluated point comes back."""
+    return name, _brent_points(lambda value: simulate_channels(name, main, value), _CTX["problem"], lo, hi)
+
+
+def _brent_points(simulate_at, problem, lo, hi):
+    """The points (value, sim or None) a bounded Brent search on ln p in [lo, hi] evaluates."""
     points = []
 
     def f(x):
         value = float(math.exp(x))
-        sim = simulate_channels(name, main, value)
+        sim = simulate_at(value)
         if sim is None:
             points.append((value, None))
             return 1e300
@@ -432,7 +436,29 @@ def _refine_job(name, main, lo, hi):
 
     minimize_scalar(f, bounds=(math.log(lo), math.log(hi)), method="bounded",
                     options={"xatol": REFINE_XATOL, "maxiter": REFINE_EVALS})
-    return name, points
+    return points
+
+
+def _refine_searches(pool, problem, refine):
+    """Every candidate's refining search: ``[(name, points)]`` in the order of ``refine``.
+
+    A search is sequential (each point depends on the last), so one search
+    per worker left a worker idle whenever the searches did not divide
+    evenly among them (three searches on two workers: a third of the time).
+    With more than one slot, each search runs in a thread of this process
+    that hands its simulations to the pool one at a time, so a free worker
+    takes the next simulation of any search: the same searches and points.
+    """
+    if getattr(pool, "slots", 1) <= 1 or len(refine) <= 1:
+        return pool.map(_refine_job, refine)
+    from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
+
+    def search(job):
+        name, main, lo, hi = job
+        return name, _brent_points(lambda value: pool.map(_grid_job, [(name, main, value)])[0][2], problem, lo, hi)
+
+    with ThreadPoolExecutor(max_workers=len(refine)) as threads:
+        return list(threads.map(search, refine))
 
 
 def _pool(workers, ctx, at_most=None):
@@ -505,7 +531,7 @@ def fit_candidates(problem, ctx, candidates, nominal_sim, workers=2, progress=No
             # The slowest searches first (their grid simulations' time), so that with more searches than
             # workers the last to start is a quick one: the order changes no search.
             refine.sort(key=lambda job: -float(np.mean(seconds[job[0]])))
-        for name, pts in pool.map(_refine_job, refine):
+        for name, pts in _refine_searches(pool, problem, refine):
             points[name].extend((v, s, None if s is None else problem.evaluate(s)) for v, s in pts)
         if progress and refine:
             progress(f"refined {len(refine)} candidates")
