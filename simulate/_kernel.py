@@ -245,8 +245,8 @@ def rhs_maxwell_update(t, y, dy, m, work):
     Only ``dy``'s accelerations are written: Verlet advances F_m exactly and
     drifts the positions with the velocities themselves, so it never reads
     the rest, nor the element ends' velocities, which only the F_m rates
-    need (not gathered). With the rest lengths once per segment, the 10 s
-    dig's integration went from 0.243 to 0.221 s, bit for bit the same.
+    need (not gathered): bit for bit the accelerations of ``rhs``, in less
+    time (docs/model.md).
     """
     _rhs(t, y, dy, m, work, True)
 

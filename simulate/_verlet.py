@@ -164,7 +164,7 @@ def _step(t, h, y, acc, y_eval, m, work):
     o_part, o_vel, o_F, o_ring = _offsets(m)
     half = 0.5 * h
     # Kick, drift and the evaluation state (velocities extrapolated to t + h) in one pass per
-    # entry: the same arithmetic as one pass each, about 0.1 us a step less.
+    # entry instead of four over the whole state: the same arithmetic, so the same bits.
     for b in range(nb):
         o = 12 * b
         for k in range(3):
