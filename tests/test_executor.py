@@ -9,11 +9,11 @@ tests/test_diagnose.py (``aero_diagnosis``).
 
 import os
 
-import dask
 import numpy as np
 import pytest
 
 distributed = pytest.importorskip("distributed")
+dask = pytest.importorskip("dask")  # distributed's own dependency: its configuration
 
 from dragline.compare import DaskExecutor, ExecutorError, LocalExecutor, executor_from  # noqa: E402
 from dragline.compare.diagnose._hypotheses import _grid_job, _init  # noqa: E402

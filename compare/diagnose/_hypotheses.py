@@ -508,10 +508,8 @@ def fit_candidates(problem, ctx, candidates, nominal_sim, workers=2, progress=No
     jobs = [jobs[i] for i in np.argsort(-np.array(costs), kind="stable")]
     pool = _pool(workers, ctx)
     try:
-        seconds = {}
-        for name, value, sim, took in pool.map(_grid_job, jobs):
+        for name, value, sim, _ in pool.map(_grid_job, jobs):
             points[name].append((value, sim, None if sim is None else problem.evaluate(sim)))
-            seconds.setdefault(name, []).append(took)
         if progress:
             progress(f"grid of {len(jobs)} simulations done")
         refine, gains = [], []
@@ -528,9 +526,6 @@ def fit_candidates(problem, ctx, candidates, nominal_sim, workers=2, progress=No
         if refine:
             keep = np.array(gains) >= REFINE_FRACTION * max(gains)
             refine = [job for job, k in zip(refine, keep) if k]
-            # The slowest searches first (their grid simulations' time), so that with more searches than
-            # workers the last to start is a quick one: the order changes no search.
-            refine.sort(key=lambda job: -float(np.mean(seconds[job[0]])))
         for name, pts in _refine_searches(pool, problem, refine):
             points[name].extend((v, s, None if s is None else problem.evaluate(s)) for v, s in pts)
         if progress and refine:
