@@ -1,6 +1,6 @@
 """Free-decay analysis: modal frequency, damping and the shape of the envelope.
 
-After the reels stop (t = 6.5 s in the dig maneuver) the rig swings freely;
+After the reels stop (t = 6.44 s in the built-in dig maneuver) the rig swings freely;
 the way that swing decays tells which damping the model lacks (docs/diagnosis.md):
 an exponential envelope is viscous damping, a linear one Coulomb friction,
 a hyperbolic one ``A0 / (1 + c t)`` quadratic (aerodynamic) drag.

@@ -51,7 +51,8 @@ DIG_PEAKS = {
     },
 }
 
-# Both reels stop after 2.5 + 1 + 2 + 1 s of the dig maneuver (section 4).
+# Both reels stop after 2.5 + 1 + 2 + 1 s of the dig maneuver as its text reads (section 4); the
+# built-in reading, identified against the peak table, stops at 6.44 s (docs/model.md).
 DIG_REELS_STOP = 6.5
 
 # "a consistent offset of approximately 51 mm" in spreader-bar x (section 4).

@@ -96,6 +96,12 @@ def text_pages(pdf, title, lines, size=7.5):
         pdf.savefig(fig)
 
 
+
+def _seconds(offset):
+    """A signed offset to 0.1 ms; one that rounds to zero prints +0.0000, not -0.0000."""
+    return f"{round(offset, 4) + 0.0:+.4f}"
+
+
 def _offset_lines(metrics):
     off = metrics["time_offset"]
     base = metrics["time_base"]
@@ -109,7 +115,7 @@ def _offset_lines(metrics):
             for ch, r in off["ropes"].items()
         )
         lines.append(
-            f"Time offset (measured clock - simulation clock): estimated {off['offset']:+.4f} s "
+            f"Time offset (measured clock - simulation clock): estimated {_seconds(off['offset'])} s "
             f"from {' and '.join(off['channels'])} (search {off['search_range'][0]:+.2f} to "
             f"{off['search_range'][1]:+.2f} s)."
         )
@@ -121,7 +127,7 @@ def _offset_lines(metrics):
             lines.append("  WARNING: the best offset lies at the edge of the search range; it may be wrong.")
     else:
         lines.append(f"Time offset: not estimated ({off['reason']}).")
-    lines.append(f"Offset applied: {off['applied']:+.4f} s ({off['source']}).")
+    lines.append(f"Offset applied: {_seconds(off['applied'])} s ({off['source']}).")
     reels = metrics["reels_stop"]
     if reels["time"] is None:
         lines.append(f"Reels stop: unknown ({reels['method']}); free decay not analysed.")

