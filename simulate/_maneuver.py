@@ -129,7 +129,8 @@ def dig_maneuver(phase1_s=DIG_PHASE1_S, phase3_drag_m_s=DIG_PHASE3_DRAG_M_S, ram
     drag4 = 4.2 - 1.4 - 0.30 * phase1_s - 0.61 - 2.0 * phase3_drag_m_s
     for what, speed in (("phase-3 hoist", hoist3), ("phase-3 drag", phase3_drag_m_s), ("phase-4 drag", drag4)):
         if not 0.0 <= speed <= REEL_SPEED_LIMIT:
-            raise ValueError(f"this dig reading needs a {what} speed of {speed:.3g} m/s, outside 0-{REEL_SPEED_LIMIT} m/s")
+            raise ValueError(f"this dig reading needs a {what} speed of {speed:.3g} m/s, "
+                             f"outside 0-{REEL_SPEED_LIMIT} m/s")
     if not (phase1_s > 0 and ramp_s >= 0 and step_s > 0):
         raise ValueError("the dig's phase-1 duration and table step must be positive and its ramp not negative")
     phases = [(phase1_s, 0.36, -0.30), (1.0, 0.0, -0.61), (2.0, hoist3, -phase3_drag_m_s), (1.0, 0.0, -drag4)]

@@ -281,7 +281,8 @@ def test_cli_bad_inputs_exit_2_with_one_line(tmp_path, nominal_measured, nominal
     dig = dig_maneuver()
     wrong = tmp_path / "wrong.csv"
     # Drag winds in evenly instead of in four phases: same start and end.
-    write_maneuver_csv(wrong, type(dig)(dig.time, dig.hoist_length, np.linspace(4.2, dig.drag_length[-1], dig.time.size)))
+    even = np.linspace(4.2, dig.drag_length[-1], dig.time.size)
+    write_maneuver_csv(wrong, type(dig)(dig.time, dig.hoist_length, even))
     assert main(["diagnose", str(meas), "--maneuver", str(wrong), "--json", out]) == 2
     assert "does not match the recorded rope lengths" in _error_line(capsys)
 

@@ -82,7 +82,8 @@ def test_the_built_in_rig_and_dig_meet_the_papers_numbers_they_were_fitted_to():
     assert table["bucket.z"].iloc[0] == pytest.approx(-1.2, abs=0.03)
     assert np.degrees(table["bucket.pitch"].iloc[0]) == pytest.approx(-52.0, abs=3.0)
     assert ip._rest_height(rig, 10.1, 1.4) == pytest.approx(-0.70, abs=0.03)
-    for channel, (value, time_s) in (("bucket.vx", (1.01, 5.95)), ("bucket.vz", (0.91, 6.27)), ("bucket.q", (3.2, 6.77))):
+    paper = {"bucket.vx": (1.01, 5.95), "bucket.vz": (0.91, 6.27), "bucket.q": (3.2, 6.77)}  # sizes, seconds
+    for channel, (value, time_s) in paper.items():
         k = int(np.argmax(np.abs(table[channel].to_numpy())))
         assert abs(table[channel].iloc[k]) == pytest.approx(value, rel=0.15), channel
         assert table["time"].iloc[k] == pytest.approx(time_s, abs=0.3), channel

@@ -14,8 +14,9 @@ residual inside +-1 is on target. Parameters move within stated bounds
 (``PARAMETERS``); the peaks are not smooth in them (a peak can jump to
 another swing), so the search is a bounded differential evolution, not a
 gradient method; a second, local stage near the first's best prices any
-number outside its target (``target_cost``). The maneuver reading (``dig_maneuver``) keeps the paper's start and end
-lengths, the phase-2 and phase-4 durations (1 s each), the 2 s of phase 3
+number outside its target (``target_cost``). The maneuver reading
+(``dig_maneuver``) keeps the paper's start and end lengths, the phase-2
+and phase-4 durations (1 s each), the 2 s of phase 3
 and the speeds it states for phases 1 and 2 (hoist 0.36 m/s, drag 0.30 and
 0.61 m/s). Free: the phase-1 duration (the text's hoist speeds add up to the
 end length only at 2.5 s, so the phase-3 hoist speed follows from it: 0.30
@@ -25,7 +26,7 @@ changes speed (its motor cannot step).
 
     python tools/identify_paper_rig.py --json identification.json --rig-out rig.toml --maneuver-out dig.csv
 
-(about 1,550 simulations, 7 min on two cores). Prints each published number
+(about 1,500 simulations, 6 min on two cores). Prints each published number
 next to ours before identification, after the global stage and after the
 second; writes the report, the rig file (the built-in one with the geometry
 replaced) and the maneuver table. The built-in rig and dig maneuver are this
@@ -48,7 +49,8 @@ from scipy.optimize import differential_evolution
 
 from dragline.capture import json_text
 from dragline.compare import DIG_PEAKS
-from dragline.simulate import Maneuver, SimulationError, StaticsError, dig_maneuver, rig_from_dict, simulate, write_maneuver_csv
+from dragline.simulate import (Maneuver, SimulationError, StaticsError, dig_maneuver, rig_from_dict, simulate,
+                               write_maneuver_csv)
 
 # name: (nominal, low, high, unit). Body points in body coordinates, fixed points inertial (m).
 PARAMETERS = {
