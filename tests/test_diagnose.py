@@ -210,7 +210,8 @@ def test_two_mechanisms_name_one_and_report_the_other(nominal_run):
     # cluster's mass and the boom point (the inertia's signature correlates
     # 0.75-0.81 with that mass's sensitivity); measured 0.55 (low) and
     # 0.61 (baseline) of the truth on the rig fitted to the poses alone, 0.49
-    # (low) on the identified rig, whose faster dig swings the bucket harder.
+    # (low) on the identified rig (whose dig swings the bucket harder: peak
+    # pitch rate 3.6 rad/s against 1.2).
     assert 0.4 < next(iter(other["parameters"].values())) / truth < 2.0
     assert "second mechanism may be at work" in doc["reason"]
 

@@ -24,7 +24,7 @@ def test_start_pose_matches_the_paper(rig):
     y, _ = _pose(rig, 8.6, 4.2)
     assert y[2] == pytest.approx(-1.2, abs=0.03)
     assert np.degrees(y[7]) == pytest.approx(-52.0, abs=3.0)
-    assert y[0] < -4.5  # far end: more than 4.5 m out toward the boom (at x = -5.35)
+    assert y[0] < -4.5  # far end: more than 4.5 m out toward the boom (at x = -5.31)
 
 
 def test_end_pose_matches_the_paper(rig):
