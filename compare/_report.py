@@ -96,7 +96,6 @@ def text_pages(pdf, title, lines, size=7.5):
         pdf.savefig(fig)
 
 
-
 def _seconds(offset):
     """A signed offset to 0.1 ms; one that rounds to zero prints +0.0000, not -0.0000."""
     return f"{round(offset, 4) + 0.0:+.4f}"

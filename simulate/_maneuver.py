@@ -138,9 +138,9 @@ def dig_maneuver(phase1_s=DIG_PHASE1_S, phase3_drag_m_s=DIG_PHASE3_DRAG_M_S, ram
     if ramp_s == 0:
         time_s = edges
     else:
-        grid = np.arange(0.0, edges[-1] + ramp_s, step_s)
-        grid = grid[np.min(np.abs(grid[:, None] - edges[None, :]), axis=1) > 1e-6]
-        time_s = np.union1d(grid, np.append(edges, edges[-1] + ramp_s))  # every phase edge a knot
+        knots = np.append(edges, edges[-1] + ramp_s)  # every phase edge, and the last ramp's end
+        grid = np.arange(0.0, knots[-1], step_s)
+        time_s = np.union1d(grid[np.min(np.abs(grid[:, None] - knots[None, :]), axis=1) > 1e-6], knots)
     lengths = []
     for column, start in ((1, 8.6), (2, 4.2)):
         at_edges = start + np.concatenate([[0.0], np.cumsum([p[0] * p[column] for p in phases])])

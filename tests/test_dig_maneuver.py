@@ -36,10 +36,17 @@ def test_every_reading_keeps_the_papers_lengths_and_stated_speeds(ramp_s, phase1
     # no reel faster than asked (to the rounding of differencing the 5 ms table)
     assert -drag.min() == pytest.approx(max(0.61, phase3_drag, drag4), abs=1e-8)
     assert hoist.max() == pytest.approx(max(0.36, hoist3), abs=1e-8) and hoist.min() >= -1e-8
-    # a ramp moves the lengths by no more than a ramp's worth of the fastest speed
-    h, d = man.lengths_at([phase1_s, phase1_s + 1.0])
-    exact_h, exact_d = 8.6 + 0.36 * phase1_s, 4.2 - 0.30 * phase1_s - 0.61
-    assert abs(h[0] - exact_h) <= 0.36 * ramp_s / 2 + 1e-9 and abs(d[1] - exact_d) <= 0.61 * ramp_s / 2 + 1e-9
+    # Past each ramp the lengths are the stepped reading's, half a ramp late (a moving average of a line);
+    # within a ramp the speed passes between the phases' speeds instead of stepping.
+    stepped = dig_maneuver(phase1_s, phase3_drag, 0.0)
+    edges = phase1_s + np.array([0.0, 1.0, 3.0])
+    after = edges + ramp_s + 0.05
+    for ramped_len, stepped_len in zip(man.lengths_at(after), stepped.lengths_at(after - ramp_s / 2)):
+        np.testing.assert_allclose(ramped_len, stepped_len, rtol=0, atol=1e-9)
+    if ramp_s > 0:
+        t = phase1_s + np.array([0.25, 0.75]) * ramp_s  # in the ramp from phase 1's drag speed to phase 2's
+        speed = np.diff(man.lengths_at(t)[1]) / np.diff(t)
+        assert -0.61 + 0.05 < speed[0] < -0.30 - 0.05
 
 
 def test_a_reading_past_the_reels_speed_limit_is_refused():

@@ -55,7 +55,7 @@ def test_dask_returns_what_local_processes_return(cluster, context):
     dask = _results(DaskExecutor(client=client), context)
     serial = _results(LocalExecutor(1), context)
     assert [(n, v) for n, v, *_ in dask] == [(n, v) for n, v, *_ in local] == [(n, v) for n, _, v in JOBS]
-    for (_, _, a, _), (_, _, b, _), (_, _, c, _) in zip(local, dask, serial):
+    for (_, _, a), (_, _, b), (_, _, c) in zip(local, dask, serial):
         assert a.shape == (31, len(CHANNELS))
         np.testing.assert_array_equal(a, b)  # the same machine code on the same inputs: bit for bit
         np.testing.assert_array_equal(a, c)
@@ -131,7 +131,7 @@ def test_a_worker_lost_mid_run_has_its_tasks_run_elsewhere(context):
                 killer.join()
                 session.close()
     local = _results(LocalExecutor(1), context)
-    for (_, _, a, _), (_, _, b, _) in zip(local * 3, got):
+    for (_, _, a), (_, _, b) in zip(local * 3, got):
         np.testing.assert_array_equal(a, b)
 
 

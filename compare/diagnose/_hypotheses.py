@@ -60,7 +60,6 @@ larger of the profile and the fold spread is the stated uncertainty.
 from __future__ import annotations
 
 import math
-import time as _time
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -411,9 +410,7 @@ def _reading_shift(result, table, reported, channel):
 
 
 def _grid_job(name, main, value):
-    start = _time.perf_counter()
-    sim = simulate_channels(name, main, value)
-    return name, value, sim, _time.perf_counter() - start
+    return name, value, simulate_channels(name, main, value)
 
 
 def _refine_job(name, main, lo, hi):
@@ -508,7 +505,7 @@ def fit_candidates(problem, ctx, candidates, nominal_sim, workers=2, progress=No
     jobs = [jobs[i] for i in np.argsort(-np.array(costs), kind="stable")]
     pool = _pool(workers, ctx)
     try:
-        for name, value, sim, _ in pool.map(_grid_job, jobs):
+        for name, value, sim in pool.map(_grid_job, jobs):
             points[name].append((value, sim, None if sim is None else problem.evaluate(sim)))
         if progress:
             progress(f"grid of {len(jobs)} simulations done")

@@ -424,7 +424,7 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     first = bounded_brent_start(*bounds, JOINT_XATOL)
     pool = _pool(workers, sim_ctx, at_most=len(first))
     try:
-        ahead = {x: s_ for x, (_, _, s_, _) in zip(first, pool.map(
+        ahead = {x: s_ for x, (_, _, s_) in zip(first, pool.map(
             _grid_job, [(mechanism.name, main, float(math.exp(x))) for x in first]))}
     finally:
         pool.close()
