@@ -92,7 +92,7 @@ def line_maneuver(duration=10.0, table_dt=TABLE_DT, ramp=0.0):
         envelope = s**3 * (10 - 15 * s + 6 * s**2)
     x = FAIRLEAD[0] + AMPLITUDE * envelope * np.sin(2 * np.pi * FREQUENCY * t)
     fairlead = np.column_stack([x, np.full_like(t, FAIRLEAD[1]), np.full_like(t, FAIRLEAD[2])])
-    return Maneuver(t, np.ones_like(t), np.ones_like(t), points={"fairlead": fairlead})
+    return Maneuver(t, points={"fairlead": fairlead})
 
 
 def to_moordyn(p):

@@ -100,7 +100,7 @@ class CaptureSession:
     lframe_points : ndarray, shape (4, 3), or None
         Known L-frame marker positions in the inertial frame (m).
     maneuver : dict of str -> ndarray
-        Reel commands, columns ``time`` (s), ``hoist_length``, ``drag_length`` (m).
+        The maneuver, columns ``time`` (s), ``<winch>_length`` (m), ``<point>.x/.y/.z`` (m).
     metadata : dict
         Free-form JSON-able notes; must never reveal the generating physics.
     recorded_ns : int or None

@@ -82,8 +82,10 @@ def _table(path):
     columns = [str(c).strip() for c in header.columns]
     if "time" not in columns:
         return None
-    reel_table = {"hoist_length", "drag_length"} <= set(columns) and all(
-        c in ("time", "hoist_length", "drag_length") or c.endswith((".x", ".y", ".z")) for c in columns)
+    # A maneuver: time, <winch>_length and moving points' .x/.y/.z, nothing else (a trajectory
+    # table's channels are <entity>.<quantity>).
+    reel_table = any(c.endswith("_length") and "." not in c for c in columns) and all(
+        c == "time" or (c.endswith("_length") and "." not in c) or c.endswith((".x", ".y", ".z")) for c in columns)
     # Read as the commands read it: its schema's error (file, column, row) is the answer for a bad table.
     num = read_maneuver_csv(path).to_frame() if reel_table else read_trajectory_table(path)
     frame = num

@@ -45,7 +45,7 @@ def number(kind="positive", integer=False, maximum=None):
 def add_model_options(parser, physics=True):
     parser.add_argument("--rig", metavar="FILE", help="rig TOML file (default: the built-in 1/16-scale rig)")
     parser.add_argument("--maneuver", default="dig", metavar="dig|FILE.csv",
-                        help="reel table: the paper's dig maneuver or a CSV with time, hoist_length, drag_length")
+                        help="maneuver: the paper's dig or a CSV with time and a <winch>_length column per winch")
     parser.add_argument("--discretization", default="baseline", metavar="LEVEL|ROPE=N,...",
                         help=f"particles per rope: {', '.join(DISCRETIZATION_LEVELS)}, or counts like hoist_rope=20,drag_chain=6")
     if physics:

@@ -304,12 +304,12 @@ def _builtin_session(tmp, seed, rig):
 
 
 def _maneuver_of(session):
-    from dragline.simulate import Maneuver
+    from dragline.simulate import maneuver_from_table
 
     m = session.maneuver
     if not m or "time" not in m:
         raise ValueError("the session holds no maneuver table: give one with --maneuver")
-    return Maneuver(m["time"], m["hoist_length"], m["drag_length"])
+    return maneuver_from_table(m, "the session's maneuver")
 
 
 def _verdict(doc):

@@ -17,14 +17,21 @@ from ._kinematics import (
     euler_rates_from_body_rates,
 )
 from ._markers import body_marker_positions, marker_names, marker_positions
-from ._maneuver import Maneuver, dig_maneuver, read_maneuver_csv, write_maneuver_csv
+from ._maneuver import (
+    Maneuver,
+    default_maneuver,
+    dig_maneuver,
+    maneuver_from_table,
+    read_maneuver_csv,
+    write_maneuver_csv,
+)
 from ._model import Model, assemble
 from ._physics import MECHANISMS, Mechanism, make_mechanism, mechanism_names, parse_physics
-from ._rig import DISCRETIZATION_LEVELS, Rig, load_rig, rig_from_dict
+from ._rig import BUILT_IN_RIGS, DISCRETIZATION_LEVELS, Rig, load_rig, rig_from_dict
 from ._simulate import SimulationError, SimulationResult, simulate
 from ._statics import Equilibrium, StaticsError, solve_statics
 from ._time_step import stable_time_step
 from ._tolerances import RigParameter, apply_parameters, draw_parameters
-from ._table import BODIES, BODY_QUANTITIES, ROPE_CHANNELS, trajectory_columns, write_trajectory_csv
+from ._table import BODIES, BODY_QUANTITIES, ROPE_CHANNELS, rope_channels, trajectory_columns, write_trajectory_csv
 from ._table_schema import MAX_ROWS as MAX_TABLE_ROWS
 from ._table_schema import check_trajectory_columns

@@ -1,10 +1,12 @@
-"""Maneuvers: reel tables of hoist and drag rope length against time.
+"""Maneuvers: what the winches pay out, and where moving points go, against time.
 
-A maneuver is a table (``time``, ``hoist_length``, ``drag_length``; s, m, m),
-linearly interpolated (seed paper section 2.3) and held at its last row
-after it ends. Users supply one as a CSV file with those three columns, and
-optionally ``<point>.x, <point>.y, <point>.z`` columns (m) that move one of
-the rig's fixed points (the boom pulley, a reel) through the maneuver.
+A maneuver is a table: ``time`` (s), one ``<winch>_length`` column (m) per
+winch of the rig (the rope it has paid out), and optionally ``<point>.x,
+<point>.y, <point>.z`` columns (m) that move one of the rig's fixed points
+(a trolley on its rail, a boom tip, the drone a load hangs from). Rows are
+linearly interpolated (seed paper section 2.3) and held at the last row
+after it ends. Which columns a rig needs is checked when the maneuver
+meets it (``_simulate.check_reel_table``).
 """
 
 from __future__ import annotations
@@ -15,49 +17,55 @@ import numpy as np
 import pandas as pd
 
 from ..capture import atomic_file
-from ._maneuver_schema import MAX_ROWS, check_maneuver_columns
+from ._maneuver_schema import LENGTH_SUFFIX, MAX_ROWS, check_maneuver_columns
 
-__all__ = ["Maneuver", "dig_maneuver", "read_maneuver_csv", "write_maneuver_csv"]
+__all__ = ["Maneuver", "dig_maneuver", "default_maneuver", "maneuver_from_table", "read_maneuver_csv",
+           "write_maneuver_csv"]
 
 
 @dataclass(frozen=True)
 class Maneuver:
-    """A reel table.
+    """A maneuver table.
 
     Attributes
     ----------
     time : ndarray, shape (K,)
         Strictly increasing (s).
-    hoist_length, drag_length : ndarray, shape (K,)
-        Rope paid out from each reel (m), positive.
+    lengths : dict
+        Winch name -> rope paid out (m, positive), shape (K,).
+    points : dict
+        Point name -> its position (m), shape (K, 3).
     """
 
     time: np.ndarray
-    hoist_length: np.ndarray
-    drag_length: np.ndarray
+    lengths: dict = field(default_factory=dict)
     points: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        cols = {}
-        for name in ("time", "hoist_length", "drag_length"):
-            arr = np.array(getattr(self, name), float).reshape(-1)
-            arr.setflags(write=False)
-            cols[name] = arr
-            object.__setattr__(self, name, arr)
-        n = cols["time"].size
+        time = np.array(self.time, float).reshape(-1)
+        time.setflags(write=False)
+        object.__setattr__(self, "time", time)
+        n = time.size
         if n == 0:
             raise ValueError("maneuver table is empty")
-        if any(c.size != n for c in cols.values()):
-            raise ValueError("maneuver columns have different lengths")
-        for name, c in cols.items():
-            if not np.isfinite(c).all():
-                raise ValueError(f"maneuver column {name!r} has missing or non-finite values")
-        if n > 1 and np.any(np.diff(cols["time"]) <= 0):
-            i = int(np.argmax(np.diff(cols["time"]) <= 0)) + 1
+        if not np.isfinite(time).all():
+            raise ValueError("maneuver column 'time' has missing or non-finite values")
+        if n > 1 and np.any(np.diff(time) <= 0):
+            i = int(np.argmax(np.diff(time) <= 0)) + 1
             raise ValueError(f"maneuver time is not strictly increasing at row {i + 1}")
-        for name in ("hoist_length", "drag_length"):
-            if np.any(cols[name] <= 0):
-                raise ValueError(f"maneuver {name} must be positive (row {int(np.argmax(cols[name] <= 0)) + 1})")
+        lengths = {}
+        for winch, values in dict(self.lengths).items():
+            arr = np.array(values, float).reshape(-1)
+            column = f"{winch}{LENGTH_SUFFIX}"
+            if arr.size != n:
+                raise ValueError("maneuver columns have different lengths")
+            if not np.isfinite(arr).all():
+                raise ValueError(f"maneuver column {column!r} has missing or non-finite values")
+            if np.any(arr <= 0):
+                raise ValueError(f"maneuver {column} must be positive (row {int(np.argmax(arr <= 0)) + 1})")
+            arr.setflags(write=False)
+            lengths[winch] = arr
+        object.__setattr__(self, "lengths", lengths)
         points = {}
         for name, xyz in dict(self.points).items():
             arr = np.array(xyz, float)
@@ -73,16 +81,25 @@ class Maneuver:
         return float(self.time[-1])
 
     def lengths_at(self, t):
-        """Interpolated (hoist, drag) lengths at times ``t`` (m)."""
+        """Each winch's interpolated length at times ``t`` (m): winch name -> array shaped like ``t``."""
         t = np.asarray(t, float)
-        return (np.interp(t, self.time, self.hoist_length), np.interp(t, self.time, self.drag_length))
+        return {winch: np.interp(t, self.time, values) for winch, values in self.lengths.items()}
 
     def to_frame(self):
-        cols = {"time": self.time, "hoist_length": self.hoist_length, "drag_length": self.drag_length}
+        cols = {"time": self.time}
+        cols.update({f"{winch}{LENGTH_SUFFIX}": values for winch, values in self.lengths.items()})
         for name, xyz in self.points.items():
             for k, axis in enumerate("xyz"):
                 cols[f"{name}.{axis}"] = xyz[:, k]
         return pd.DataFrame(cols)
+
+
+def default_maneuver(rig):
+    """The rig's own maneuver (its file's ``maneuver``): a CSV it names, else the built-in dig maneuver."""
+    name = getattr(rig, "maneuver", None)
+    if name is None or name == "dig":
+        return dig_maneuver()
+    return read_maneuver_csv(name)
 
 
 # The text's reading fitted to the paper's published poses and peak table
@@ -148,7 +165,7 @@ def dig_maneuver(phase1_s=DIG_PHASE1_S, phase3_drag_m_s=DIG_PHASE3_DRAG_M_S, ram
             lengths.append(at_edges)
         else:
             lengths.append((_integral(time_s, edges, at_edges) - _integral(time_s - ramp_s, edges, at_edges)) / ramp_s)
-    return Maneuver(time_s, lengths[0], lengths[1])
+    return Maneuver(time_s, {"hoist": lengths[0], "drag": lengths[1]})
 
 
 def _integral(t, knots, values):
@@ -162,7 +179,7 @@ def _integral(t, knots, values):
 
 
 def read_maneuver_csv(path):
-    """Read a maneuver CSV (columns ``time, hoist_length, drag_length``).
+    """Read a maneuver CSV (``time``, ``<winch>_length`` columns, optional ``<point>.x/.y/.z``).
 
     Raises
     ------
@@ -177,13 +194,8 @@ def read_maneuver_csv(path):
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, OSError) as exc:
         raise ValueError(f"maneuver file {path} cannot be read: {str(exc).splitlines()[0]}") from None
     frame.columns = [str(c).strip() for c in frame.columns]
-    missing = [c for c in ("time", "hoist_length", "drag_length") if c not in frame.columns]
-    if missing:
-        raise ValueError(f"maneuver file {path} lacks column(s) {', '.join(missing)}")
-    point_names = sorted({c.rsplit(".", 1)[0] for c in frame.columns if c.endswith((".x", ".y", ".z"))})
-    for name in point_names:
-        if not all(f"{name}.{a}" in frame.columns for a in "xyz"):
-            raise ValueError(f"maneuver file {path}: point {name!r} needs .x, .y and .z columns")
+    if "time" not in frame.columns:
+        raise ValueError(f"maneuver file {path} lacks column(s) time")
     if len(frame) == 0:
         raise ValueError(f"maneuver file {path} is empty (a header and no rows)")
     if len(frame) > MAX_ROWS:
@@ -197,15 +209,30 @@ def read_maneuver_csv(path):
             raise ValueError(f"maneuver file {path}: column {c}, row {row + 2} = {frame[c].iloc[row]!r}: "
                              "expected a number")
         num[c] = values.to_numpy(float)
-    columns = {c: num[c].tolist() for c in ("time", "hoist_length", "drag_length")}
-    columns["points"] = {name: np.column_stack([num[f"{name}.{a}"] for a in "xyz"]).tolist() for name in point_names}
-    known = {"time", "hoist_length", "drag_length"} | {f"{n}.{a}" for n in point_names for a in "xyz"}
-    columns.update({c: num[c].tolist() for c in frame.columns if c not in known})  # refused by the schema
+    return maneuver_from_table({c: num[c] for c in frame.columns}, path)
+
+
+def maneuver_from_table(table, path):
+    """A Maneuver from flat columns (``time``, ``<winch>_length``, ``<point>.x/.y/.z``), as a CSV or a session holds them.
+
+    Raises
+    ------
+    ValueError
+        One line naming ``path``, the column and the row.
+    """
+    point_names = sorted({c.rsplit(".", 1)[0] for c in table if c.endswith((".x", ".y", ".z"))})
+    for name in point_names:
+        if not all(f"{name}.{a}" in table for a in "xyz"):
+            raise ValueError(f"maneuver file {path}: point {name!r} needs .x, .y and .z columns")
+    point_columns = {f"{n}.{a}" for n in point_names for a in "xyz"}
+    columns = {c: np.asarray(v, float).tolist() for c, v in table.items() if c not in point_columns}
+    columns["points"] = {name: np.column_stack([np.asarray(table[f"{name}.{a}"], float) for a in "xyz"]).tolist()
+                         for name in point_names}
     return maneuver_from_columns(columns, path)
 
 
 def maneuver_from_columns(columns, path):
-    """A Maneuver from its columns (``_maneuver_schema.ManeuverColumns`` layout), checked against the schema.
+    """A Maneuver from its columns (``time``, ``<winch>_length`` lists, ``points``), checked against the schema.
 
     Raises
     ------
@@ -213,9 +240,10 @@ def maneuver_from_columns(columns, path):
         One line naming ``path``, the column and the row.
     """
     check_maneuver_columns(columns, path)
+    lengths = {c[: -len(LENGTH_SUFFIX)]: columns[c] for c in columns if c.endswith(LENGTH_SUFFIX)}
     points = {name: np.asarray(xyz, float) for name, xyz in columns.get("points", {}).items()}
     try:
-        return Maneuver(columns["time"], columns["hoist_length"], columns["drag_length"], points)
+        return Maneuver(columns["time"], lengths, points)
     except ValueError as exc:
         raise ValueError(f"maneuver file {path}: {exc}") from None
 

@@ -5,13 +5,15 @@ Topology of one rope segment with ``n`` particles (seed paper section 2.2):
 pulley is ``start - (A particles) - ring - (B particles) - end``: the ring
 splits one element, so it has n + 2 elements; the split of particles
 between the sides is fixed for a run (proportional to the sides' initial
-spans). A side between two fixed points (the hoist rope from its reel to the
-boom pulley) is one massless straight element: the fixed reel-to-boom path.
+spans). A side between two fixed points (a rope from its winch to a fixed sheave)
+is one massless straight element: the fixed winch-to-sheave path.
 
-Reels (docs/model.md): the maneuver's reel table sets a reel rope's *total*
-unstretched length from the reel; for the hoist rope the boom pulley's ring
-state splits it between the fixed reel-to-boom path and the modelled span,
-so the span's length is the reel length minus the (stretching) fixed path.
+Winches (docs/model.md): the maneuver's ``<winch>_length`` column sets a
+winch rope's *total* unstretched length from the winch; for a rope from its
+winch through a fixed ring (the dragline's hoist rope over the boom
+pulley) the ring state splits it between the fixed winch-to-ring path and
+the modelled span, so the span's length is the winch length minus the
+(stretching) fixed path.
 Particle masses are the segment's current unstretched length times its mass
 per length, shared evenly by its particles, so a reel paying out makes every
 particle of the span heavier at the same rate.
@@ -27,9 +29,7 @@ import numpy as np
 
 from ._kernel import KIND_BODY, KIND_FIXED, KIND_PARTICLE
 
-__all__ = ["Model", "assemble"]
-
-REELS = ("hoist", "drag")
+__all__ = ["Model", "assemble", "winch_table", "rough_body_positions"]
 
 
 @dataclass
@@ -225,7 +225,7 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
     ----------
     rig : Rig
     maneuver : Maneuver
-        Reel table (hoist, drag lengths).
+        A length column for each of the rig's winches, moving points.
     discretization : str or dict
         Level name or per-rope particle counts (``Rig.particle_counts``).
     physics : sequence of Mechanism
@@ -244,7 +244,14 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
     counts = rig.particle_counts(discretization)
     fixed_names = list(rig.fixed_points)
     seg_names = tuple(rig.ropes)
-    guess = rough_body_positions(rig, *maneuver.lengths_at(maneuver.time[0]))
+    missing = [w for w in rig.winches if w not in maneuver.lengths]
+    if missing:
+        raise ValueError(f"the maneuver has no {missing[0]}_length column for winch {missing[0]!r} of the rig")
+    unknown = [w for w in maneuver.lengths if w not in rig.winches]
+    if unknown:
+        raise ValueError(f"the maneuver's {unknown[0]}_length column names no winch of the rig "
+                         f"(its winches: {', '.join(rig.winches) or 'none'})")
+    guess = rough_body_positions(rig, maneuver.lengths_at(maneuver.time[0]))
 
     part_seg, el = [], []
     seg = {k: [] for k in ("ks", "kv", "relax", "len0", "reel", "reel_off", "ring", "nel", "nelA", "npart", "rho")}
@@ -295,8 +302,8 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
             seg["ks"].append(spec.static_stiffness + spec.viscous_stiffness)
             seg["kv"].append(0.0)
             seg["relax"].append(0.0)
-        seg["len0"].append(spec.length if spec.reel is None else 0.0)
-        seg["reel"].append(-1 if spec.reel is None else REELS.index(spec.reel))
+        seg["len0"].append(spec.length if spec.winch is None else 0.0)
+        seg["reel"].append(-1 if spec.winch is None else list(rig.winches).index(spec.winch))
         seg["reel_off"].append(0.0)
         seg["ring"].append(seg_ring.get(name, -1))
         seg["nel"].append(len(sides))
@@ -337,7 +344,7 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         "ring_seg": np.array(ring_seg, np.int64),
         "ring_added_mass": np.zeros(len(ring_seg)),
         "reel_t": np.array(maneuver.time, float),
-        "reel_len": np.column_stack([maneuver.hoist_length, maneuver.drag_length]).astype(float),
+        "reel_len": winch_table(rig, maneuver),
         "point_pos": _point_table(rig, maneuver, fixed_names),
         "relax_damping": 0.0,
         # The statics' relaxation scales accelerations down (fictitious masses, _statics); 1 in a simulation.
@@ -428,36 +435,45 @@ def _joints(seg_nodes, seg_elements, seg_names):
     return joints
 
 
-def rough_body_positions(rig, hoist_length, drag_length):
-    """A rough hanging pose (mass-centre positions, m) to start the statics from.
+def winch_table(rig, maneuver):
+    """The maneuver's winch lengths in the rig's winch order, (K, W) m; (K, 1) of ones for a rig without winches."""
+    if not rig.winches:
+        return np.ones((maneuver.time.size, 1))
+    return np.column_stack([maneuver.lengths[w] for w in rig.winches]).astype(float)
 
-    The bucket and its rigging are treated as one rigid block hanging from
-    the hoist rope's span and, when it is taut, held back by the drag rope;
-    the block's place is found on the x-z plane by a two-rope balance.
+
+def rough_body_positions(rig, lengths):
+    """A rough pose (mass-centre positions, m) to start the statics from.
+
+    With the rig's ``rough_pose``, its bodies are one rigid block hanging
+    from the ``hang`` rope's span below its ring and, when it is taut, held
+    back by the ``hold`` rope; the block's place is found on the x-z plane
+    by a two-rope balance. Without one, each body starts at its
+    ``position`` (the origin when it gives none).
+
+    Parameters
+    ----------
+    rig : Rig
+    lengths : dict
+        Winch name -> its length (m) at the start.
     """
-    fp = rig.fixed_points
-    if "boom_pulley" not in fp:  # not a dragline: bodies start at their given positions
+    pose = rig.rough_pose
+    if pose is None:
         return {name: (np.zeros(3) if b.position is None else b.position) for name, b in rig.bodies.items()}
-    boom = fp["boom_pulley"]
-    reel_h = fp.get("hoist_reel", boom)
-    reel_d = fp.get("drag_reel", np.zeros(3))
-    p = np.array(_hanging_block(tuple(map(float, boom)), tuple(map(float, reel_h)), tuple(map(float, reel_d)),
-                                float(hoist_length), float(drag_length)))
-    return {name: p + off for name, off in _BLOCK_OFFSETS.items() if name in rig.bodies}
-
-
-# Each body's mass centre from the bucket's in the rough pose (hanging, level).
-_BLOCK_OFFSETS = {
-    "bucket": np.zeros(3),
-    "spreader_bar": np.array([-0.05, 0.0, -0.27]),
-    "hoist_cluster": np.array([-0.05, 0.0, -0.55]),
-    "drag_cluster": np.array([0.75, 0.0, -0.05]),
-}
+    hang, hold = rig.ropes[pose.hang], rig.ropes[pose.hold]
+    fp = rig.fixed_points
+    ring = fp[hang.ring.partition(".")[2]]
+    hang_from, hold_from = fp[hang.start.partition(".")[2]], fp[hold.start.partition(".")[2]]
+    hang_body, hold_body = hang.end.partition(".")[0], hold.end.partition(".")[0]
+    p = np.array(_hanging_block(tuple(map(float, ring)), tuple(map(float, hang_from)), tuple(map(float, hold_from)),
+                                float(lengths[hang.winch]), float(lengths[hold.winch]),
+                                tuple(map(float, pose.offsets[hang_body])), tuple(map(float, pose.offsets[hold_body]))))
+    return {name: p + off for name, off in pose.offsets.items()}
 
 
 @functools.lru_cache(maxsize=64)
-def _hanging_block(boom, reel_h, reel_d, hoist_length, drag_length):
-    """The bucket's rough place (x, 0, z) for ``rough_body_positions``.
+def _hanging_block(ring, hang_from, hold_from, hang_length, hold_length, hang_offset, hold_offset):
+    """The first body's rough place (x, 0, z) for ``rough_body_positions``.
 
     Kept per fixed points and lengths: every model is assembled through
     here, and a diagnosis assembles hundreds of rigs that differ only in
@@ -465,15 +481,16 @@ def _hanging_block(boom, reel_h, reel_d, hoist_length, drag_length):
     """
     from scipy.optimize import minimize
 
-    boom, reel_h, reel_d = np.array(boom), np.array(reel_h), np.array(reel_d)
-    span_h = hoist_length - np.linalg.norm(boom - reel_h)
+    ring, hang_from, hold_from = np.array(ring), np.array(hang_from), np.array(hold_from)
+    hang_offset, hold_offset = np.array(hang_offset), np.array(hold_offset)
+    span = hang_length - np.linalg.norm(ring - hang_from)
 
     def cost(xz):
         p = np.array([xz[0], 0.0, xz[1]])
-        dh = np.linalg.norm(p + _BLOCK_OFFSETS["hoist_cluster"] - boom) - 0.99 * span_h
-        dd = max(0.0, np.linalg.norm(p + _BLOCK_OFFSETS["drag_cluster"] - reel_d) - 0.99 * drag_length)
+        dh = np.linalg.norm(p + hang_offset - ring) - 0.99 * span
+        dd = max(0.0, np.linalg.norm(p + hold_offset - hold_from) - 0.99 * hold_length)
         return dh**2 + dd**2 + 1e-4 * (-p[2])
 
-    x0 = np.array([boom[0] + 0.3, boom[2] + span_h + 0.55])
+    x0 = np.array([ring[0] + 0.3, ring[2] + span + 0.55])
     res = minimize(cost, x0, method="Nelder-Mead", options={"xatol": 1e-6, "fatol": 1e-12, "maxiter": 4000})
     return float(res.x[0]), 0.0, float(res.x[1])

@@ -8,6 +8,7 @@ centre ``cg_body`` from them.
 
 from __future__ import annotations
 
+import dataclasses
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
@@ -16,11 +17,13 @@ from pathlib import Path
 import numpy as np
 
 from ._rig_schema import MAX_PARTICLES, check_rig_doc
-from ._table import BODIES
 
-__all__ = ["BodySpec", "RopeSpec", "Rig", "load_rig", "rig_from_dict", "DISCRETIZATION_LEVELS"]
+__all__ = ["BodySpec", "RopeSpec", "Rig", "RoughPose", "load_rig", "rig_from_dict", "DISCRETIZATION_LEVELS",
+           "BUILT_IN_RIGS"]
 
 DISCRETIZATION_LEVELS = ("low", "baseline", "medium", "high")
+# The machines that ship with the tool, by name (``--rig NAME``); the first is the default.
+BUILT_IN_RIGS = {"dragline": "data/rig.toml", "pendulum": "data/pendulum.toml"}
 
 
 @dataclass(frozen=True)
@@ -50,11 +53,11 @@ class RopeSpec:
         ``"<body>.<point>"`` or ``"fixed.<point>"``.
     ring : str or None
         Ring pulley the rope passes through, same notation.
-    reel : str or None
-        ``"hoist"`` or ``"drag"`` when the maneuver's reel table sets the
+    winch : str or None
+        The winch whose maneuver column (``<winch>_length``) sets the
         rope's total unstretched length from ``start``.
     length : float or None
-        Unstretched length (m) of a rope not on a reel.
+        Unstretched length (m) of a rope on no winch.
     weight_per_length : float
         N/m.
     static_stiffness, viscous_stiffness : float
@@ -65,6 +68,11 @@ class RopeSpec:
         Rope markers, unstretched m of rope from the ``end``.
     diameter : float
         Projected width per unit length (m), for air drag.
+    kind : str
+        ``rope``, ``cable`` or ``chain`` (``_rig_schema.ROPE_KINDS``): the
+        mechanisms choose their segments by it, never by the name.
+    ring_name : str or None
+        The ring's site name, when not its point's name.
     """
 
     name: str
@@ -75,15 +83,40 @@ class RopeSpec:
     viscous_stiffness: float
     viscous_damping: float
     ring: str | None = None
-    reel: str | None = None
+    winch: str | None = None
     length: float | None = None
     marker_distances: tuple = ()
     diameter: float = 0.01
+    kind: str = "rope"
+    ring_name: str | None = None
+
+    @property
+    def ring_site(self):
+        """The ring's site name (``ring_name``, else its point's name); None without a ring."""
+        if self.ring is None:
+            return None
+        return self.ring_name or self.ring.partition(".")[2]
+
+
+@dataclass(frozen=True)
+class RoughPose:
+    """The statics' starting pose: the bodies as one block (``offsets`` from the first body's mass centre, m)
+    hanging from the span of winch rope ``hang`` below its fixed ring, held back by winch rope ``hold``."""
+
+    hang: str
+    hold: str
+    offsets: dict
 
 
 @dataclass(frozen=True)
 class Rig:
-    """A whole rig. ``bodies`` follow the paper's order (bucket, spreader bar, hoist cluster, drag cluster) (then any others); ``ropes`` the file's."""
+    """A whole rig: ``bodies``, ``ropes`` and ``winches`` in the file's order.
+
+    ``winches`` maps each winch to the rope it pays out, in the order the
+    file declares them (a rope's ``winch``); ``maneuver`` names the rig's
+    own maneuver (a CSV path, resolved against the file's folder, or a
+    built-in generator's name), None for the dig maneuver.
+    """
 
     name: str
     g: float
@@ -93,6 +126,10 @@ class Rig:
     discretization: dict
     source: str = ""
     tolerances: tuple = ()  # RigParameter: what a lab knows only approximately (``_tolerances``)
+    winches: dict = field(default_factory=dict)
+    maneuver: str | None = None
+    rough_pose: RoughPose | None = None
+    release: dict | None = None  # body -> {"position", "angles"}: where the rig's own trial lets go
 
     def particle_counts(self, discretization="baseline"):
         """Particles per rope segment.
@@ -102,8 +139,8 @@ class Rig:
         discretization : str or dict
             A level name (low, baseline, medium, high) or a mapping from rope
             name to particle count; ropes not named keep the baseline count.
-            ``drag_chain``, ``lower_hoist_chain`` and ``upper_hoist_chain``
-            name both sides at once.
+            A name ``X`` also names the ropes ``left_X`` and ``right_X``
+            (a pair of sides, as the discretization table's rows do).
 
         Returns
         -------
@@ -171,69 +208,53 @@ def rig_from_dict(doc, source="rig"):
 
 
 def load_rig(path=None):
-    """Load a rig TOML file (the built-in rig when ``path`` is None).
+    """Load a rig TOML file: a path, a built-in machine's name (``BUILT_IN_RIGS``), or None for the dragline.
 
     Raises
     ------
     ValueError
-        On anything its schema refuses (``_rig_schema``, docs/schemas.md), a
-        missing body or an unknown point name: one line naming the file.
+        On anything its schema refuses (``_rig_schema``, docs/schemas.md),
+        an unknown point, body or winch name: one line naming the file.
     """
-    if path is None:
-        text = resources.files("dragline.simulate").joinpath("data/rig.toml").read_text()
-        source = "built-in rig"
+    if path is None or str(path) in BUILT_IN_RIGS:
+        name = "dragline" if path is None else str(path)
+        text = resources.files("dragline.simulate").joinpath(BUILT_IN_RIGS[name]).read_text()
+        source, folder = ("built-in rig" if path is None else f"built-in rig {name!r}"), None
     else:
         try:
             text = Path(path).read_text()
         except OSError as exc:
             raise ValueError(f"cannot read rig file {path}: {exc.strerror}") from None
-        source = str(path)
+        except UnicodeDecodeError:
+            raise ValueError(f"rig file {path} is not UTF-8 text") from None
+        source, folder = str(path), Path(path).parent
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{source}: not valid TOML ({exc})") from None
     check_rig_doc(doc, source)
     rig = rig_from_dict(doc, source)
-    missing = [b for b in BODIES if b not in rig.bodies]
-    if missing:
-        raise ValueError(f"{source}: a dragline rig needs body {missing[0]!r}")
+    if rig.maneuver is not None and rig.maneuver.endswith(".csv"):
+        if folder is None:
+            located = resources.files("dragline.simulate").joinpath("data", rig.maneuver)
+        else:
+            located = folder / rig.maneuver
+        rig = dataclasses.replace(rig, maneuver=str(located))
     return rig
 
 
 def _rig_from_doc(doc, source):
-    bodies = {}
-    # the dragline's bodies first, in the paper's order; other rigs may name their own
-    doc_bodies = doc.get("bodies", {})
-    names = [b for b in BODIES if b in doc_bodies] + [b for b in doc_bodies if b not in BODIES]
-    for name in names:
-        b = doc_bodies[name]
-        inertia = np.diag(_vec(b["inertia_diag"], f"{name}.inertia_diag"))
-        if "inertia_offdiag" in b:  # Ixy, Ixz, Iyz (products of inertia, kg m^2)
-            ixy, ixz, iyz = _vec(b["inertia_offdiag"], f"{name}.inertia_offdiag")
-            inertia[0, 1] = inertia[1, 0] = -ixy
-            inertia[0, 2] = inertia[2, 0] = -ixz
-            inertia[1, 2] = inertia[2, 1] = -iyz
-        if b["mass"] <= 0 or np.any(np.linalg.eigvalsh(inertia) <= 0):
-            raise ValueError(f"{source}: body {name!r} needs positive mass and inertia")
-        bodies[name] = BodySpec(
-            name=name,
-            mass=float(b["mass"]),
-            cg_body=_vec(b["cg_body"], f"{name}.cg_body"),
-            inertia=inertia,
-            size=_vec(b.get("size", [0.05, 0.05, 0.05]), f"{name}.size"),
-            points={k: _vec(v, f"{name}.points.{k}") for k, v in b.get("points", {}).items()},
-            markers={k: _vec(v, f"{name}.markers.{k}") for k, v in b.get("markers", {}).items()},
-            position=_vec(b["position"], f"{name}.position") if "position" in b else None,
-        )
+    bodies = {name: _body(name, b, source) for name, b in doc.get("bodies", {}).items()}
     fixed = {k: _vec(v, f"fixed_points.{k}") for k, v in doc.get("fixed_points", {}).items()}
-    ropes = {}
+    ropes, winches = {}, {}
     for name, r in doc["ropes"].items():
         spec = RopeSpec(
             name=name,
             start=r["start"],
             end=r["end"],
             ring=r.get("ring"),
-            reel=r.get("reel"),
+            ring_name=r.get("ring_name"),
+            winch=r.get("reel"),
             length=r.get("length"),
             weight_per_length=float(r["weight_per_length"]),
             static_stiffness=float(r["static_stiffness"]),
@@ -241,20 +262,36 @@ def _rig_from_doc(doc, source):
             viscous_damping=float(r["viscous_damping"]),
             marker_distances=tuple(float(d) for d in r.get("marker_distances", ())),
             diameter=float(r.get("diameter", 0.01)),
+            kind=r.get("kind", "rope"),
         )
         for ref in (spec.start, spec.end) + ((spec.ring,) if spec.ring else ()):
             _check_ref(ref, bodies, fixed, f"{source}: rope {name!r}")
-        if spec.reel not in (None, "hoist", "drag"):
-            raise ValueError(f"{source}: rope {name!r}: reel must be 'hoist' or 'drag'")
-        if spec.reel is None and not (spec.length and spec.length > 0):
-            raise ValueError(f"{source}: rope {name!r} needs a positive length or a reel")
+        if spec.winch is not None:  # a file written before [winches]
+            if spec.winch in winches:
+                raise ValueError(f"{source}: ropes {winches[spec.winch]!r} and {name!r} both name reel "
+                                 f"{spec.winch!r}; a winch pays out one rope")
+            winches[spec.winch] = name
         if min(spec.static_stiffness, spec.viscous_stiffness, spec.viscous_damping) <= 0:
             raise ValueError(f"{source}: rope {name!r} needs positive stiffness and damping")
         ropes[name] = spec
+    for winch, w in doc.get("winches", {}).items():
+        rope = ropes.get(w["rope"])
+        if rope is None:
+            raise ValueError(f"{source}: winches.{winch}.rope = {w['rope']!r}: no such rope")
+        if rope.winch is not None:
+            raise ValueError(f"{source}: winches.{winch}.rope = {w['rope']!r}: rope {w['rope']!r} is already paid "
+                             f"out by winch {rope.winch!r}")
+        winches[winch] = rope.name
+        ropes[rope.name] = dataclasses.replace(rope, winch=winch)
+    for name, spec in ropes.items():
+        if spec.winch is None and not (spec.length and spec.length > 0):
+            raise ValueError(f"{source}: rope {name!r} needs a positive length or a winch")
+    _check_sites(ropes, source)
+    _check_held(bodies, ropes, source)
     from ._tolerances import parse_tolerances
 
     return Rig(
-        tolerances=parse_tolerances(doc, bodies, ropes, fixed, source),
+        tolerances=parse_tolerances(doc, bodies, ropes, fixed, source, winches),
         name=doc.get("name", source),
         g=float(doc.get("g", 9.81)),
         bodies=bodies,
@@ -262,7 +299,88 @@ def _rig_from_doc(doc, source):
         fixed_points=fixed,
         discretization=_expand_levels(doc["discretization"], list(ropes)) if "discretization" in doc else _single_level(ropes, doc),
         source=source,
+        winches=winches,
+        maneuver=doc.get("maneuver"),
+        rough_pose=_rough_pose(doc.get("rough_pose"), bodies, ropes, source),
+        release=_release(doc.get("release"), bodies, source),
     )
+
+
+def _body(name, b, source):
+    inertia = np.diag(_vec(b["inertia_diag"], f"{name}.inertia_diag"))
+    if "inertia_offdiag" in b:  # Ixy, Ixz, Iyz (products of inertia, kg m^2)
+        ixy, ixz, iyz = _vec(b["inertia_offdiag"], f"{name}.inertia_offdiag")
+        inertia[0, 1] = inertia[1, 0] = -ixy
+        inertia[0, 2] = inertia[2, 0] = -ixz
+        inertia[1, 2] = inertia[2, 1] = -iyz
+    if b["mass"] <= 0 or np.any(np.linalg.eigvalsh(inertia) <= 0):
+        raise ValueError(f"{source}: body {name!r} needs positive mass and inertia")
+    return BodySpec(
+        name=name,
+        mass=float(b["mass"]),
+        cg_body=_vec(b["cg_body"], f"{name}.cg_body"),
+        inertia=inertia,
+        size=_vec(b.get("size", [0.05, 0.05, 0.05]), f"{name}.size"),
+        points={k: _vec(v, f"{name}.points.{k}") for k, v in b.get("points", {}).items()},
+        markers={k: _vec(v, f"{name}.markers.{k}") for k, v in b.get("markers", {}).items()},
+        position=_vec(b["position"], f"{name}.position") if "position" in b else None,
+    )
+
+
+def _check_sites(ropes, source):
+    """Ring site names are unique, and never the name of a rope (a mechanism's ``pulley`` takes either)."""
+    seen = {}
+    for name, spec in ropes.items():
+        site = spec.ring_site
+        if site is None:
+            continue
+        if site in seen and seen[site] != spec.ring:
+            raise ValueError(f"{source}: ring name {site!r} of rope {name!r} names another ring too")
+        if site in ropes and site != name:
+            raise ValueError(f"{source}: ring name {site!r} of rope {name!r} is also a rope's name")
+        seen[site] = spec.ring
+
+
+def _check_held(bodies, ropes, source):
+    """Every body hangs from a rope: one that nothing holds falls forever."""
+    held = {ref.partition(".")[0] for spec in ropes.values() for ref in (spec.start, spec.end, spec.ring or "")}
+    for name in bodies:
+        if name not in held:
+            raise ValueError(f"{source}: body {name!r} is held by no rope")
+
+
+def _release(table, bodies, source):
+    if not table:
+        return None
+    out = {}
+    for name, pose in table.items():
+        if name not in bodies:
+            raise ValueError(f"{source}: release.{name}: no such body")
+        out[name] = {"position": _vec(pose["position"], f"release.{name}.position"),
+                     "angles": np.radians(_vec(pose.get("angles_deg", [0.0, 0.0, 0.0]), f"release.{name}.angles_deg"))}
+    return out
+
+
+def _rough_pose(table, bodies, ropes, source):
+    if table is None:
+        return None
+    for key in ("hang", "hold"):
+        rope = ropes.get(table[key])
+        if rope is None or rope.winch is None or not rope.start.startswith("fixed."):
+            raise ValueError(f"{source}: rough_pose.{key} = {table[key]!r}: expected a rope on a winch from a "
+                             "fixed point")
+    if ropes[table["hang"]].ring is None or not ropes[table["hang"]].ring.startswith("fixed."):
+        raise ValueError(f"{source}: rough_pose.hang = {table['hang']!r}: expected a rope through a fixed ring")
+    offsets = {}
+    for name, off in table["offsets"].items():
+        if name not in bodies:
+            raise ValueError(f"{source}: rough_pose.offsets names no body {name!r}")
+        offsets[name] = _vec(off, f"rough_pose.offsets.{name}")
+    for key in ("hang", "hold"):
+        owner = ropes[table[key]].end.partition(".")[0]
+        if owner not in offsets:
+            raise ValueError(f"{source}: rough_pose.offsets lacks body {owner!r}, which rope {table[key]!r} holds")
+    return RoughPose(hang=table["hang"], hold=table["hold"], offsets=offsets)
 
 
 def _single_level(ropes, doc):

@@ -19,8 +19,11 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from ..capture import describe_validation_error, fields_markdown, short_repr
 
-__all__ = ["RigFile", "check_rig_doc", "rig_markdown", "MAX_PARTICLES"]
+__all__ = ["RigFile", "check_rig_doc", "rig_markdown", "MAX_PARTICLES", "ROPE_KINDS"]
 
+# What a rope can be made of: the mechanisms choose their segments by it
+# (bending damping acts on ropes and cables, link friction on chains).
+ROPE_KINDS = ("rope", "cable", "chain")
 # A rope of more particles than this is a typo, not a discretization (the
 # finest built-in level has 16).
 MAX_PARTICLES = 500
@@ -52,14 +55,19 @@ class Body(_Strict):
     position: Optional[_Vec3] = Field(None, description="starting guess for the statics (m, inertial)")
 
 
-class Rope(_Strict):
-    """A rope or chain segment with its Table 2 properties."""
+_Name = Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")]
 
+
+class Rope(_Strict):
+    """A rope, cable or chain segment with its Table 2 properties."""
+
+    kind: Literal[ROPE_KINDS] = Field("rope", description="what it is made of; the mechanisms act by kind")
     start: str = Field(min_length=1, description='"body.point" or "fixed.point"')
     end: str = Field(min_length=1, description='"body.point" or "fixed.point"')
     ring: Optional[str] = Field(None, min_length=1, description="ring pulley it passes through")
-    reel: Optional[Literal["hoist", "drag"]] = Field(
-        None, description='"hoist" or "drag": its length is the maneuver\'s reel table')
+    ring_name: Optional[_Name] = Field(None, description="the ring's site name (default: its point's name)")
+    reel: Optional[_Name] = Field(None, description="the winch paying it out, in files written before "
+                                                    "`[winches]`: the same as `[winches.NAME] rope = ...`")
     length: Optional[float] = Field(None, ge=MIN_ROPE_LENGTH, le=1e3, allow_inf_nan=False,
                                     description="unstretched length (m), ropes not on a reel")
     weight_per_length: float = Field(gt=0, le=1e4, allow_inf_nan=False, description="N/m")
@@ -72,11 +80,11 @@ class Rope(_Strict):
     particles: Optional[int] = Field(None, ge=1, le=MAX_PARTICLES,
                                      description="particles, rigs without a [discretization] table")
 
-    @model_validator(mode="after")
-    def _length_or_reel(self):
-        if self.reel is None and self.length is None:
-            raise ValueError("a rope needs a length or a reel")
-        return self
+
+class Winch(_Strict):
+    """A winch: it pays out one rope, as the maneuver's `<winch>_length` column says."""
+
+    rope: _Name = Field(description="the rope it pays out; its length is the rope's whole length from its start")
 
 
 _Counts = Annotated[list[Annotated[int, Field(ge=1, le=MAX_PARTICLES)]], Field(min_length=1)]
@@ -100,6 +108,25 @@ class Discretization(_Strict):
         return self
 
 
+class RoughPose(_Strict):
+    """A rough hanging pose the statics start from: the bodies as one block, hung and held back by two ropes.
+
+    Without it, each body starts at its ``position``.
+    """
+
+    hang: _Name = Field(description="winch rope through a fixed ring; the block hangs from its span below the ring")
+    hold: _Name = Field(description="winch rope from a fixed point that holds the block back when taut")
+    offsets: dict[str, _Vec3] = Field(min_length=1, description="each body's mass centre from the first one's (m)")
+
+
+class Release(_Strict):
+    """A body held here at rest, the ropes settled under it, then let go: the rig's own trial starts so."""
+
+    position: _Vec3 = Field(description="mass centre (m, inertial)")
+    angles_deg: Optional[list[Annotated[float, Field(ge=-360, le=360, allow_inf_nan=False)]]] = Field(
+        None, min_length=3, max_length=3, description="roll, pitch, yaw (deg), the output sequence; default level")
+
+
 class RigFile(_Strict):
     """A whole rig."""
 
@@ -109,9 +136,31 @@ class RigFile(_Strict):
     bodies: dict[str, Body] = Field(default_factory=dict, description="rigid bodies by name")
     fixed_points: dict[str, _Vec3] = Field(default_factory=dict, description="points fixed in the lab (m)")
     ropes: dict[str, Rope] = Field(min_length=1, description="rope and chain segments by name")
+    winches: dict[_Name, Winch] = Field(default_factory=dict, description="winches by name, below")
     discretization: Optional[Discretization] = Field(None, description="Table 3, below")
+    maneuver: Optional[str] = Field(None, min_length=1, description="the rig's own maneuver: a CSV beside the file, "
+                                                                     "or a built-in generator's name")
+    rough_pose: Optional[RoughPose] = Field(None, description="where the statics start, below")
+    release: dict[str, Release] = Field(default_factory=dict, description="the rig's own trial starts from a "
+                                                                        "release of these bodies, below")
     tolerances: dict[str, Any] = Field(default_factory=dict, description="docs/rig-file.md")
     tolerance_groups: dict[str, list[str]] = Field(default_factory=dict, description="docs/rig-file.md")
+
+    @model_validator(mode="after")
+    def _length_or_winch(self):
+        wound = {}
+        for winch, w in self.winches.items():
+            if w.rope not in self.ropes:
+                raise ValueError(f"winches.{winch}.rope = {w.rope!r}: no such rope")
+            other = wound.get(w.rope) or self.ropes[w.rope].reel
+            if other is not None:
+                raise ValueError(f"winches.{winch}.rope = {w.rope!r}: rope {w.rope!r} is already paid out by "
+                                 f"winch {other!r}")
+            wound[w.rope] = winch
+        for name, rope in self.ropes.items():
+            if rope.reel is None and rope.length is None and name not in wound:
+                raise ValueError(f"rope {name!r} needs a length or a winch ([winches.NAME] rope = {name!r})")
+        return self
 
 
 def check_rig_doc(doc, source):
@@ -135,6 +184,7 @@ def rig_markdown():
 
     header = ["| key | type | default | allowed | meaning |", "|---|---|---|---|---|"]
     blocks = [header + fields_markdown(RigFile)]
-    for model, prefix in ((Body, "bodies.NAME."), (Rope, "ropes.NAME."), (Discretization, "discretization.")):
+    for model, prefix in ((Body, "bodies.NAME."), (Rope, "ropes.NAME."), (Winch, "winches.NAME."), (Discretization, "discretization."),
+                          (RoughPose, "rough_pose."), (Release, "release.BODY.")):
         blocks.append(header + fields_markdown(model, prefix))
     return "\n\n".join("\n".join(b) for b in blocks) + "\n"

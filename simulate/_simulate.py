@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from . import _kernel
-from ._maneuver import dig_maneuver
+from ._maneuver import default_maneuver
 from ._model import assemble
 from ._rig import load_rig
 from ._statics import solve_statics
@@ -178,16 +178,14 @@ def trajectory_table(model, time, states, extras=True):
             cols[f"{name}.{q}"] = states[:, o + 3 + k]
         for k, q in enumerate(("p", "q", "r")):
             cols[f"{name}.{q}"] = states[:, o + 9 + k]
-    for rope in ("hoist_rope", "drag_rope"):
-        if rope in model.seg_names:
-            nodes = model.node_positions(states, rope, time)
-            cols[f"{rope}.length"] = np.linalg.norm(np.diff(nodes, axis=1), axis=2).sum(axis=1)
-    order = [c for c in trajectory_columns() if c in cols] + [c for c in cols if c not in trajectory_columns()]
-    frame = pd.DataFrame(cols, columns=order)
+    for rope in model.rig.winches.values():
+        nodes = model.node_positions(states, rope, time)
+        cols[f"{rope}.length"] = np.linalg.norm(np.diff(nodes, axis=1), axis=2).sum(axis=1)
+    frame = pd.DataFrame(cols, columns=trajectory_columns(model.rig))
     if not extras:
         return frame
-    h, d = model.maneuver.lengths_at(time)
-    extras = {"hoist_rope.reel_length": h, "drag_rope.reel_length": d}
+    at_time = model.maneuver.lengths_at(time)
+    extras = {f"{rope}.reel_length": at_time[winch] for winch, rope in model.rig.winches.items()}
     for seg in model.seg_names:
         tension = element_tensions(model, time, states, seg)
         extras[f"{seg}.tension_start"] = tension[:, 0]
@@ -253,6 +251,21 @@ def check_reel_table(model):
                                  f"{t[k + 1]:.12g} s; reels move at most {MAX_REEL_SPEED:g} m/s")
 
 
+def _held_pose(rig, release):
+    """``release`` (body -> position, angles) as ``solve_statics``'s ``held``; ValueError naming an unknown body."""
+    held = {}
+    for name, pose in release.items():
+        if name not in rig.bodies:
+            raise ValueError(f"the release names {name!r}, which is not a body of the rig")
+        position = np.asarray(pose["position"], float)
+        angles = np.asarray(pose.get("angles", (0.0, 0.0, 0.0)), float)
+        if position.shape != (3,) or angles.shape != (3,) or not (np.isfinite(position).all()
+                                                                   and np.isfinite(angles).all()):
+            raise ValueError(f"the release of {name!r} needs a finite position (3) and angles (3)")
+        held[name] = (position, angles)
+    return held
+
+
 def simulate(
     rig=None,
     maneuver=None,
@@ -266,6 +279,7 @@ def simulate(
     max_speed=100.0,
     statics_guess=None,
     integrator="verlet",
+    release=None,
 ):
     """Simulate a maneuver from static equilibrium.
 
@@ -274,7 +288,7 @@ def simulate(
     rig : Rig, optional
         The built-in 1/16-scale rig by default.
     maneuver : Maneuver, optional
-        The paper's dig maneuver by default.
+        The rig's own (``default_maneuver``; the dig for the built-in rig).
     discretization : str or dict
         low, baseline, medium, high, or per-rope particle counts.
     physics : sequence of Mechanism
@@ -298,6 +312,12 @@ def simulate(
         Where the statics start (for example the equilibrium of a rig a few
         percent different, same discretization): the relaxation then ends
         almost at once and Newton polishes.
+    release : dict, optional
+        Body name -> ``{"position": (3,) m, "angles": (3,) rad}`` (angles
+        default level): the trial starts from a release, those bodies held
+        there at rest, the ropes (and any body not named) settled under
+        them, then let go. By default the rig's own ``release``, else the
+        static equilibrium.
     integrator : {"verlet", "rk4"}
         Kick-drift-kick velocity Verlet (``_verlet``: one right-hand side a
         step, about twice as fast at the baseline) or classical RK4, the
@@ -313,7 +333,7 @@ def simulate(
         On a blow-up, naming the time and the segment or body.
     """
     rig = load_rig() if rig is None else rig
-    maneuver = dig_maneuver() if maneuver is None else maneuver
+    maneuver = default_maneuver(rig) if maneuver is None else maneuver
     if integrator not in INTEGRATORS:
         raise ValueError(f"unknown integrator {integrator!r}; choose one of {', '.join(INTEGRATORS)}")
     if not duration > 0:
@@ -340,7 +360,9 @@ def simulate(
         guess = None
         if statics_guess is not None and np.shape(statics_guess) == (nominal.n_state,):
             guess = statics_guess
-        eq = solve_statics(nominal, t0, y0=guess)
+        release = rig.release if release is None else release
+        held = None if not release else _held_pose(rig, release)
+        eq = solve_statics(nominal, t0, y0=guess if held is None else None, held=held)
         y0, residual = eq.state, eq.residual
     else:
         y0, residual = np.array(initial_state, float), float("nan")

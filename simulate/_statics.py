@@ -76,22 +76,26 @@ class Equilibrium:
 def _frozen(model, t):
     """The model's arrays with the reels held at their lengths at time t."""
     a = dict(model.arrays)
-    h, d = model.maneuver.lengths_at(t)
     a["reel_t"] = np.array([0.0])
-    a["reel_len"] = np.array([[float(h), float(d)]])
+    a["reel_len"] = model.arrays["reel_len"][:1].copy()
+    at_t = model.maneuver.lengths_at(t)
+    for k, winch in enumerate(model.rig.winches):
+        a["reel_len"][0, k] = float(at_t[winch])
     a["point_pos"] = model.fixed_positions(t)
     return a
 
 
-def initial_state(model, t=0.0, pitch_guess=0.0):
-    """A rough pose: bodies hanging in line, ropes straight or sagging."""
-    h, d = model.maneuver.lengths_at(t)
-    pos = rough_body_positions(model.rig, float(h), float(d))
+def initial_state(model, t=0.0, held=None):
+    """A rough pose: bodies hanging in line (or where ``held`` puts them), ropes straight or sagging.
+
+    ``held``: body name -> (mass-centre position (3,) m, Euler angles (3,) rad).
+    """
+    pos = rough_body_positions(model.rig, {w: float(v) for w, v in model.maneuver.lengths_at(t).items()})
     y = np.zeros(model.n_state)
     for b, name in enumerate(model.body_names):
         y[12 * b : 12 * b + 3] = pos[name]
-        if name == "bucket":
-            y[12 * b + 7] = pitch_guess
+        if held and name in held:
+            y[12 * b : 12 * b + 3], y[12 * b + 6 : 12 * b + 9] = held[name]
     Lseg = model.segment_lengths(t)
     for s, name in enumerate(model.seg_names):
         nodes = model.seg_nodes[name]
@@ -118,17 +122,18 @@ def initial_state(model, t=0.0, pitch_guess=0.0):
     return y
 
 
-def _unknown_index(model):
+def _unknown_index(model, held=()):
     idx = []
     for b in range(model.n_bodies):
-        idx += [12 * b + k for k in (0, 1, 2, 6, 7, 8)]
+        if b not in held:
+            idx += [12 * b + k for k in (0, 1, 2, 6, 7, 8)]
     idx += list(range(model.o_part, model.o_vel))
     idx += [model.o_ring + 2 * r for r in range(model.n_rings)]
     return np.array(idx)
 
 
-def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1e-6):
-    """Equilibrium pose at the reel lengths of time ``t``.
+def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1e-6, held=None):
+    """Equilibrium pose at the reel lengths of time ``t``, or the ropes' equilibrium under held bodies.
 
     Parameters
     ----------
@@ -143,6 +148,11 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
         Most simulated seconds of relaxation before the polish starts anyway.
     tol : float
         Largest force (N) or moment (N m) imbalance accepted.
+    held : dict, optional
+        Body name -> (mass-centre position (3,) m, Euler angles (3,) rad):
+        those bodies are held there and only the ropes (and the other
+        bodies) settle, as a lab holds a load before it lets it go (a
+        release). Their forces are not balanced.
 
     Returns
     -------
@@ -156,8 +166,14 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     arrays = _frozen(model, t)
     newton = kernel_model(arrays)
     work = _kernel.make_work(newton)
-    y = initial_state(model, t) if y0 is None else np.array(y0, float)
+    held_index = tuple(model.body_names.index(name) for name in held) if held else ()
+    if y0 is None:
+        y = initial_state(model, t, held)
+    else:
+        y = np.array(y0, float)
     relaxing = _fictitious_masses(model, arrays, y, t)
+    relaxing["body_accel_scale"] = relaxing["body_accel_scale"].copy()
+    relaxing["body_accel_scale"][list(held_index)] = 0.0
     relaxing["relax_damping"] = float(damping)
     m = kernel_model(relaxing)
     # Refused on the true masses: the fictitious ones would relax a rig whose motion no step can follow.
@@ -178,7 +194,7 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     if y0 is not None:
         # A guess (the equilibrium of a rig a few percent different) is near
         # its own: Newton from it directly, relaxing only if that fails.
-        rest, worst = _polish(model, newton, work, y, tol, max_iter=DIRECT_NEWTON_ITERATIONS)
+        rest, worst = _polish(model, newton, work, y, tol, max_iter=DIRECT_NEWTON_ITERATIONS, held=held_index)
         if np.isfinite(worst) and worst <= tol:
             return Equilibrium(state=rest.copy(), residual=worst)
     for stage, speed in enumerate(NEWTON_FROM_SPEEDS):  # Newton from an early pose first; relax on if it fails
@@ -202,7 +218,7 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
             y = rec[-1].copy()
             chunks_left -= 1
             relaxed += 1
-        rest, worst = _polish(model, newton, work, y, tol)
+        rest, worst = _polish(model, newton, work, y, tol, held=held_index)
         if np.isfinite(worst) and worst <= tol:
             break
     if not np.isfinite(worst) or worst > tol:
@@ -256,14 +272,18 @@ def _fictitious_masses(model, arrays, y, t):
     return out
 
 
-def _polish(model, m, work, y, tol, max_iter=60):
-    """Newton on the static balance from relaxed state ``y``: (rest state, largest imbalance left)."""
+def _polish(model, m, work, y, tol, max_iter=60, held=()):
+    """Newton on the static balance from relaxed state ``y``: (rest state, largest imbalance left).
+
+    ``held``: indices of bodies held where they are (no unknowns, no balance).
+    """
     y = np.array(y, float)
     for b in range(model.n_bodies):  # a body may have turned a full circle while settling
-        y[12 * b + 6 : 12 * b + 9] = np.angle(np.exp(1j * y[12 * b + 6 : 12 * b + 9]))
-    unknown = _unknown_index(model)
-    rows = _accel_index(model)
-    scale = _residual_scale(model)
+        if b not in held:
+            y[12 * b + 6 : 12 * b + 9] = np.angle(np.exp(1j * y[12 * b + 6 : 12 * b + 9]))
+    unknown = _unknown_index(model, held)
+    rows = _accel_index(model, held)
+    scale = _residual_scale(model, held)
     rest = _at_rest(model, y)
     dy = np.zeros(model.n_state)
 
@@ -345,7 +365,7 @@ def _jacobian_pattern(model, unknown):
     def node_dofs(kind, idx):
         if kind == KIND_PARTICLE:
             return [col[model.o_part + 3 * idx + k] for k in range(3)]
-        if kind == _kernel.KIND_BODY:
+        if kind == _kernel.KIND_BODY and 12 * idx in col:  # a held body has no unknowns
             return [col[12 * idx + k] for k in (0, 1, 2, 6, 7, 8)]
         return []
 
@@ -395,21 +415,23 @@ def _colour_columns(pattern):
     return [np.flatnonzero(labels == g) for g in range(int(labels.max()) + 1 if labels.size else 0)]
 
 
-def _accel_index(model):
+def _accel_index(model, held=()):
     idx = []
     for b in range(model.n_bodies):
-        idx += [12 * b + k for k in (3, 4, 5, 9, 10, 11)]
+        if b not in held:
+            idx += [12 * b + k for k in (3, 4, 5, 9, 10, 11)]
     idx += list(range(model.o_vel, model.o_force))
     idx += [model.o_ring + 2 * r + 1 for r in range(model.n_rings)]
     return np.array(idx)
 
 
-def _residual_scale(model):
+def _residual_scale(model, held=()):
     """Accelerations -> forces (N) and moments (N m): multiply by the mass or inertia."""
     a = model.arrays
     scale = []
     for b in range(model.n_bodies):
-        scale += [a["body_mass"][b]] * 3 + list(np.diag(a["body_I"][b]))
+        if b not in held:
+            scale += [a["body_mass"][b]] * 3 + list(np.diag(a["body_I"][b]))
     L = model.segment_lengths(0.0)
     for p in range(model.n_particles):
         s = a["part_seg"][p]

@@ -1,36 +1,55 @@
 """The one trajectory-table schema shared by measured and simulated data.
 
 docs/conventions.md: a pandas DataFrame (or CSV) with a ``time`` column (s) and columns
-``<entity>.<quantity>``. Bodies carry mass-centre position ``x y z`` (m),
-Euler angles ``roll pitch yaw`` (rad), inertial velocity ``vx vy vz`` (m/s)
-and body rates ``p q r`` (rad/s); ropes carry ``length`` (m). Extra columns
-(rope tensions, ...) are allowed after these.
+``<entity>.<quantity>``, the entities the rig's: each body carries its
+mass-centre position ``x y z`` (m), Euler angles ``roll pitch yaw`` (rad),
+inertial velocity ``vx vy vz`` (m/s) and body rates ``p q r`` (rad/s); each
+winch's rope carries ``length`` (m). Extra columns (rope tensions, ...) are
+allowed after these. ``BODIES`` and ``ROPE_CHANNELS`` are the built-in
+rig's.
 """
 
 from __future__ import annotations
 
 from ..capture import atomic_file
+from ._rig import load_rig
 
-__all__ = ["BODIES", "BODY_QUANTITIES", "ROPE_CHANNELS", "trajectory_columns", "write_trajectory_csv"]
+__all__ = ["BODIES", "BODY_QUANTITIES", "ROPE_CHANNELS", "trajectory_columns", "rope_channels",
+           "write_trajectory_csv"]
 
-BODIES = ("bucket", "spreader_bar", "hoist_cluster", "drag_cluster")
 BODY_QUANTITIES = ("x", "y", "z", "roll", "pitch", "yaw", "vx", "vy", "vz", "p", "q", "r")
-ROPE_CHANNELS = ("hoist_rope.length", "drag_rope.length")
 
 
-def trajectory_columns():
-    """Column names of a trajectory table, in their canonical order.
+def rope_channels(rig):
+    """The rope-length channels of a rig: one per winch, in the winches' order (``<rope>.length``)."""
+    return tuple(f"{rope}.length" for rope in rig.winches.values())
+
+
+def trajectory_columns(rig=None):
+    """Column names of a rig's trajectory table, in their canonical order.
+
+    Parameters
+    ----------
+    rig : Rig, optional
+        The built-in rig by default.
 
     Returns
     -------
     list of str
-        ``["time", "bucket.x", ..., "drag_rope.length"]``.
+        ``time``, every body's quantities (``BODY_QUANTITIES``) in the
+        rig's body order, then ``rope_channels(rig)``.
     """
+    rig = _BUILT_IN if rig is None else rig
     cols = ["time"]
-    for body in BODIES:
+    for body in rig.bodies:
         cols += [f"{body}.{q}" for q in BODY_QUANTITIES]
-    cols += list(ROPE_CHANNELS)
+    cols += list(rope_channels(rig))
     return cols
+
+
+_BUILT_IN = load_rig()
+BODIES = tuple(_BUILT_IN.bodies)
+ROPE_CHANNELS = rope_channels(_BUILT_IN)
 
 
 def write_trajectory_csv(path, table):

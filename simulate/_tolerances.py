@@ -18,7 +18,7 @@ A key names what it moves:
   ``<group>`` a rope name or a group of ``[tolerance_groups]`` (one rope
   or chain type, every segment of it moved together)
 - ``fixed_points.<point>.x`` (or ``y``, ``z``)
-- ``reels.<hoist|drag>.zero``: an offset (m) added to the reel table's
+- ``winches.<winch>.zero`` (or ``reels.<winch>.zero``): an offset (m) added to the maneuver's
   length, as a miscounted drum would give
 
 and its value is a table with ``relative`` (a fraction of the nominal
@@ -88,7 +88,7 @@ class RigParameter:
         return f"{self.name} {coordinate * 1000:+.1f} mm" if self.unit == "m" else f"{self.name} {coordinate:+.3g} {self.unit}"
 
 
-def parse_tolerances(doc, bodies, ropes, fixed, source="rig"):
+def parse_tolerances(doc, bodies, ropes, fixed, source="rig", winches=None):
     """The ``[tolerances]`` table of a rig document as ``RigParameter`` objects.
 
     Parameters
@@ -97,6 +97,8 @@ def parse_tolerances(doc, bodies, ropes, fixed, source="rig"):
         The rig document (TOML layout).
     bodies, ropes, fixed : dict
         The rig's parsed bodies, ropes and fixed points.
+    winches : dict, optional
+        Winch name -> the rope it pays out.
 
     Raises
     ------
@@ -137,7 +139,8 @@ def parse_tolerances(doc, bodies, ropes, fixed, source="rig"):
             kind, fld, nominal, unit = "rope", parts[2], float(values.pop()), "N" if "stiffness" in parts[2] else "N s"
         elif parts[0] == "fixed_points" and len(parts) == 3 and parts[1] in fixed and parts[2] in _AXES:
             kind, fld, nominal, unit, targets = "fixed_point", parts[2], float(fixed[parts[1]][_AXES[parts[2]]]), "m", (parts[1],)
-        elif parts[0] == "reels" and len(parts) == 3 and parts[1] in ("hoist", "drag") and parts[2] == "zero":
+        elif parts[0] in ("winches", "reels") and len(parts) == 3 and parts[1] in (winches or {}) \
+                and parts[2] == "zero":
             kind, fld, nominal, unit, targets = "reel_zero", "zero", 0.0, "m", (parts[1],)
         else:
             raise ValueError(f"{where}: unknown parameter (see docs/rig-file.md for the keys)")
@@ -171,7 +174,7 @@ def apply_parameters(rig, maneuver, parameters, coordinates):
     from ._maneuver import Maneuver
 
     bodies, ropes, fixed = dict(rig.bodies), dict(rig.ropes), dict(rig.fixed_points)
-    hoist, drag = maneuver.hoist_length, maneuver.drag_length
+    lengths = dict(maneuver.lengths)
     for p, x in zip(parameters, coordinates):
         x = float(x)
         if x == 0.0:
@@ -192,12 +195,10 @@ def apply_parameters(rig, maneuver, parameters, coordinates):
                 xyz = fixed[t].copy()
                 xyz[_AXES[p.field]] = value
                 fixed[t] = xyz
-            elif t == "hoist":
-                hoist = hoist + value
             else:
-                drag = drag + value
+                lengths[t] = lengths[t] + value
     return (dataclasses.replace(rig, bodies=bodies, ropes=ropes, fixed_points=fixed),
-            Maneuver(maneuver.time, hoist, drag, dict(maneuver.points)))
+            Maneuver(maneuver.time, lengths, dict(maneuver.points)))
 
 
 def draw_parameters(parameters, rng, spread=1.0, limit=2.0):

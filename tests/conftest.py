@@ -36,7 +36,7 @@ def synthetic_table(t, reel_columns=True):
     cols = {"time": t}
     for k, ch in enumerate(trajectory_columns()[1:-2]):
         cols[ch] = 0.3 * np.sin(2 * np.pi * (0.2 + 0.01 * k) * t + k) + 0.01 * k * t
-    hoist, drag = dig_maneuver().lengths_at(t)
+    hoist, drag = (dig_maneuver().lengths_at(t)[w] for w in ("hoist", "drag"))
     tau = np.clip(t - 6.5, 0.0, None)
     cols["hoist_rope.length"] = hoist + 0.02 * np.sin(4.0 * tau) * np.exp(-0.3 * tau)
     cols["drag_rope.length"] = drag

@@ -73,7 +73,7 @@ def test_synth_writes_the_session_and_the_truth_apart(lab):
     assert physics["physics"] == [{"name": "aero_drag", "parameters": {"cd": 1.5, "air_density": 1.2}}]
     man = pd.read_csv(lab["session"] / "maneuver.csv")
     dig = dig_maneuver()
-    np.testing.assert_allclose(man["drag_length"], dig.drag_length)
+    np.testing.assert_allclose(man["drag_length"], dig.lengths["drag"])
     session, report = read_session(lab["session"])
     assert report["lost"] == "nothing"
     assert session.marker_names == marker_names(load_rig())

@@ -37,7 +37,7 @@ def first_sample_from(times, t):
 
 def rope_lengths(t):
     """Dig-maneuver reel lengths plus a decaying swing after the stop (m)."""
-    hoist, drag = dig_maneuver().lengths_at(t)
+    hoist, drag = (dig_maneuver().lengths_at(t)[w] for w in ("hoist", "drag"))
     tau = np.clip(t - REEL_STOP, 0.0, None)
     swing = 0.03 * np.sin(2 * np.pi * 0.6 * tau) * np.exp(-0.3 * tau)
     return hoist + 0.3 + swing, drag + 0.04 - 0.5 * swing
@@ -56,7 +56,7 @@ def synthetic_table(t, reel_columns=True):
         cols[ch] = a * np.sin(2 * np.pi * f * t + phi) + 0.05 * a * t
     cols["hoist_rope.length"], cols["drag_rope.length"] = rope_lengths(t)
     if reel_columns:
-        cols["hoist_rope.reel_length"], cols["drag_rope.reel_length"] = dig_maneuver().lengths_at(t)
+        cols["hoist_rope.reel_length"], cols["drag_rope.reel_length"] = (dig_maneuver().lengths_at(t)[w] for w in ("hoist", "drag"))
     return pd.DataFrame(cols)
 
 

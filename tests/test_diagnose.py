@@ -282,8 +282,8 @@ def test_cli_bad_inputs_exit_2_with_one_line(tmp_path, nominal_measured, nominal
     dig = dig_maneuver()
     wrong = tmp_path / "wrong.csv"
     # Drag winds in evenly instead of in four phases: same start and end.
-    even = np.linspace(4.2, dig.drag_length[-1], dig.time.size)
-    write_maneuver_csv(wrong, type(dig)(dig.time, dig.hoist_length, even))
+    even = np.linspace(4.2, dig.lengths["drag"][-1], dig.time.size)
+    write_maneuver_csv(wrong, type(dig)(dig.time, {"hoist": dig.lengths["hoist"], "drag": even}))
     assert main(["diagnose", str(meas), "--maneuver", str(wrong), "--json", out]) == 2
     assert "does not match the recorded rope lengths" in _error_line(capsys)
 
@@ -316,7 +316,7 @@ def test_session_directory_is_diagnosed_from_the_motion_alone(tmp_path, nominal_
     write_session_dir(folder, session, nominal_run.model.maneuver)
     table, maneuver, source = load_recording(folder)
     assert source["kind"] == "session" and "calibrated" in source["calibration"]
-    assert np.allclose(maneuver.drag_length, dig_maneuver().drag_length)
+    assert np.allclose(maneuver.lengths["drag"], dig_maneuver().lengths["drag"])
     doc = diagnose(table, maneuver, candidates=["aero_drag"], workers=2, discretization=LEVEL).doc
     assert doc["verdict"] == "none", doc["reason"]
     assert pd.Series([e["noise"] for e in doc["channels"].values()]).max() < 0.02
@@ -329,3 +329,27 @@ def test_report_is_deterministic(tmp_path, aero_diagnosis):
     write_diagnosis_report(a, aero_diagnosis)
     write_diagnosis_report(b, aero_diagnosis)
     assert a.read_bytes().startswith(b"%PDF") and a.read_bytes() == b.read_bytes()
+
+
+def test_the_steps_leave_their_input_state_as_it_was_and_compose_to_diagnose(nominal_measured, nominal_diagnosis):
+    """``diagnose`` is ``STEPS`` run in order over one state, each step returning a new state: run
+    one at a time, every step leaves the state it was given unchanged (its pickled bytes), and the
+    last state reads as the same document ``diagnose`` gave."""
+    import pickle
+
+    from dragline.compare.diagnose._diagnose import diagnosis_of
+    from dragline.compare.diagnose._state import DiagnosisState
+    from dragline.compare.diagnose._steps import STEPS
+    from dragline.simulate import load_rig
+
+    state = DiagnosisState(measured=nominal_measured, rig=load_rig(), maneuver=dig_maneuver(),
+                           discretization=LEVEL, candidate_names=CANDIDATES, workers=2)
+    for step in STEPS:
+        before = pickle.dumps(state)
+        after = step(state)
+        assert pickle.dumps(state) == before, f"{step.__name__} modified its input state"
+        state = after
+    doc = diagnosis_of(state).doc
+    expected = nominal_diagnosis.doc
+    for key in ("verdict", "reason", "hypotheses", "null_test", "calibration", "mismatch", "channels"):
+        assert doc[key] == expected[key], key

@@ -10,7 +10,7 @@ from dragline.simulate import dig_maneuver
 
 
 def _speeds(man):
-    return np.diff(man.hoist_length) / np.diff(man.time), np.diff(man.drag_length) / np.diff(man.time)
+    return np.diff(man.lengths["hoist"]) / np.diff(man.time), np.diff(man.lengths["drag"]) / np.diff(man.time)
 
 
 def test_the_literal_reading_is_the_texts_phases():
@@ -27,8 +27,8 @@ def test_the_literal_reading_is_the_texts_phases():
 @pytest.mark.parametrize("phase1_s, phase3_drag", [(2.5, 0.48), (2.3, 0.36), (2.6, 0.3)])
 def test_every_reading_keeps_the_papers_lengths_and_stated_speeds(ramp_s, phase1_s, phase3_drag):
     man = dig_maneuver(phase1_s, phase3_drag, ramp_s)
-    assert (man.hoist_length[0], man.drag_length[0]) == (pytest.approx(8.6, abs=1e-9), pytest.approx(4.2, abs=1e-9))
-    assert (man.hoist_length[-1], man.drag_length[-1]) == (pytest.approx(10.1, abs=1e-9), pytest.approx(1.4, abs=1e-9))
+    assert (man.lengths["hoist"][0], man.lengths["drag"][0]) == (pytest.approx(8.6, abs=1e-9), pytest.approx(4.2, abs=1e-9))
+    assert (man.lengths["hoist"][-1], man.lengths["drag"][-1]) == (pytest.approx(10.1, abs=1e-9), pytest.approx(1.4, abs=1e-9))
     assert man.end_time == pytest.approx(phase1_s + 4.0 + ramp_s)
     hoist, drag = _speeds(man)
     drag4 = 4.2 - 1.4 - 0.30 * phase1_s - 0.61 - 2 * phase3_drag
@@ -41,11 +41,11 @@ def test_every_reading_keeps_the_papers_lengths_and_stated_speeds(ramp_s, phase1
     stepped = dig_maneuver(phase1_s, phase3_drag, 0.0)
     edges = phase1_s + np.array([0.0, 1.0, 3.0])
     after = edges + ramp_s + 0.05
-    for ramped_len, stepped_len in zip(man.lengths_at(after), stepped.lengths_at(after - ramp_s / 2)):
+    for ramped_len, stepped_len in zip(man.lengths_at(after).values(), stepped.lengths_at(after - ramp_s / 2).values()):
         np.testing.assert_allclose(ramped_len, stepped_len, rtol=0, atol=1e-9)
     if ramp_s > 0:
         t = phase1_s + np.array([0.25, 0.75]) * ramp_s  # in the ramp from phase 1's drag speed to phase 2's
-        speed = np.diff(man.lengths_at(t)[1]) / np.diff(t)
+        speed = np.diff(man.lengths_at(t)["drag"]) / np.diff(t)
         assert -0.61 + 0.05 < speed[0] < -0.30 - 0.05
 
 
@@ -63,4 +63,4 @@ def test_the_default_reading_is_the_identified_one():
     fitted = dig_maneuver(values["maneuver.phase1_s"], values["maneuver.phase3_drag_m_s"], values["maneuver.ramp_s"])
     built_in = dig_maneuver()
     np.testing.assert_array_equal(built_in.time, fitted.time)
-    np.testing.assert_array_equal(built_in.drag_length, fitted.drag_length)
+    np.testing.assert_array_equal(built_in.lengths["drag"], fitted.lengths["drag"])

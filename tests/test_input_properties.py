@@ -72,7 +72,7 @@ def _config_doc():
 
 def _maneuver_doc():
     m = dig_maneuver()
-    return {"time": m.time.tolist(), "hoist_length": m.hoist_length.tolist(), "drag_length": m.drag_length.tolist(),
+    return {"time": m.time.tolist(), "hoist_length": m.lengths["hoist"].tolist(), "drag_length": m.lengths["drag"].tolist(),
             "points": {"boom_pulley": [[-5.35, 0.0, -4.06]] * m.time.size}}
 
 

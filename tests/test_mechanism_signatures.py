@@ -45,7 +45,7 @@ from scipy.integrate import solve_ivp
 from dragline.compare import dominant_mode, envelope_shape
 from dragline.simulate import Maneuver, assemble, mechanism_names, parse_physics, rig_from_dict, simulate, solve_statics
 
-STILL = Maneuver([0.0], [1.0], [1.0])  # reels unused by these rigs
+STILL = Maneuver([0.0])  # these rigs have no winch
 G = 9.81
 RHO_AIR = 1.2  # kg/m^3, aero_drag's default
 TOP = -2.0  # z of the upper fixed points (m; K points down)
@@ -60,9 +60,10 @@ SIGNATURE_TESTS = {
 
 
 def _properties(rig, segment):
-    """Table 2 properties of one of the built-in rig's segments, as a rope dict."""
+    """Table 2 properties (and the kind) of one of the built-in rig's segments, as a rope dict."""
     spec = rig.ropes[segment]
     return {
+        "kind": spec.kind,
         "weight_per_length": spec.weight_per_length,
         "static_stiffness": spec.static_stiffness,
         "viscous_stiffness": spec.viscous_stiffness,

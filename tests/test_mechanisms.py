@@ -17,7 +17,7 @@ SPECS = [
 @pytest.fixture(scope="module")
 def pushed(rig):
     """End pose of the dig, everything pushed at 0.2 m/s along +x, reels still."""
-    man = Maneuver([0.0], [10.1], [1.4])
+    man = Maneuver([0.0], {"hoist": [10.1], "drag": [1.4]})
     model = assemble(rig, man, dissipation=False)
     eq = solve_statics(model)
     y0 = eq.state.copy()
@@ -62,14 +62,14 @@ def test_every_mechanism_kind_has_the_one_interface_and_only_switches_on_its_own
 
     modules = {type(kind).__module__ for kind in MECHANISMS.values()}
     assert len(modules) == len(MECHANISMS)
-    nominal = assemble(rig, Maneuver([0.0], [8.6], [4.2])).arrays
+    nominal = assemble(rig, Maneuver([0.0], {"hoist": [8.6], "drag": [4.2]})).arrays
     for name, kind in MECHANISMS.items():
         assert isinstance(kind, MechanismType) and kind.name == name
         numeric = {k for k, v in kind.defaults.items() if not isinstance(v, str)}
         assert kind.main in numeric and set(kind.units) == numeric, name
         lo, hi = kind.range
         assert 0 < lo < hi, name
-        with_it = assemble(rig, Maneuver([0.0], [8.6], [4.2]), physics=[make_mechanism(name)]).arrays
+        with_it = assemble(rig, Maneuver([0.0], {"hoist": [8.6], "drag": [4.2]}), physics=[make_mechanism(name)]).arrays
         changed = [k for k in nominal if not np.array_equal(nominal[k], with_it[k])]
         assert changed, name
         for k in changed:

@@ -32,7 +32,9 @@ BUILT_IN = resources.files("dragline.simulate").joinpath("data/rig.toml").read_t
     ("baseline = [6, 5, 12, 4, 2, 3]", "baseline = [0, 5, 12, 4, 2, 3]", ["discretization.baseline.0", ">= 1"]),
     ("baseline = [6, 5, 12, 4, 2, 3]", "baseline = [6, 5, 12, 4, 2]", ["discretization.baseline", "5 counts"]),
     ("viscous_damping = 53.0", "viscous_dampign = 53.0", ["ropes.dump_rope"]),
-    ('reel = "drag"', 'reel = "dragg"', ["ropes.drag_rope.reel", "hoist"]),
+    ('rope = "drag_rope"', 'rope = "drag_ropes"', ["winches.drag.rope", "no such rope"]),
+    ('rope = "drag_rope"', 'rope = "hoist_rope"', ["winches.drag.rope", "already paid out by winch 'hoist'"]),
+    ('kind = "chain"', 'kind = "wire"', ["ropes.left_drag_chain.kind", "'chain'"]),  # a kind no mechanism knows
     ("g = 9.81", "g = -9.81", ["g = -9.81", "> 0"]),
     ("g = 9.81", "g = 0", ["g = 0", "> 0"]),  # weights per length became masses dividing by g: a traceback
     ("boom_pulley = [-5.314, 0.0, -4.1285]", "boom_pulley = [-5.314, 0.0]", ["fixed_points.boom_pulley"]),
@@ -73,7 +75,7 @@ def test_the_docs_list_the_maneuver_schema_as_generated():
     doc = (REPO / "docs" / "schemas.md").read_text()
     block = re.search(r"<!-- generated: maneuver schema -->\n(.*?)<!-- end generated -->", doc, re.S).group(1)
     assert block == maneuver_markdown()
-    assert "| `hoist_length` |" in block
+    assert "| `lengths` |" in block and "<winch>_length" in block
 
 
 def test_the_docs_list_the_trajectory_schema_as_generated():

@@ -40,7 +40,7 @@ def test_user_maneuver_csv_is_used(tmp_path):
         ("time,hoist_length,drag_length\n", "empty"),
         ("time,hoist_length,drag_length\n0,8.6,4.2\n2,8.7,4.1\n1,8.8,4.0\n", "not strictly increasing"),
         ("time,hoist_length,drag_length\n0,8.6,-4.2\n", "column drag_length, row 2 = -4.2: expected a value > 0"),
-        ("time,hoist\n0,8.6\n", "lacks column"),
+        ("time,hoist\n0,8.6\n", "unknown column 'hoist'"),
         ("time,hoist_length,drag_length\n0,8.6,abc\n", "column drag_length, row 2 = 'abc': expected a number"),
         ("time,hoist_length,drag_length\n0,8.6,4.2\n1,,4.2\n", "column hoist_length, row 3 = nan: expected a finite"),
         ("time,hoist_length,drag_length,hoist_lenght\n0,8.6,4.2,8.6\n", "unknown column 'hoist_lenght'"),
@@ -131,7 +131,7 @@ def test_blow_up_names_time_and_place_and_writes_nothing(rig, tmp_path, capsys):
 
 
 def test_known_mechanisms_change_the_motion(rig):
-    still = Maneuver([0.0], [10.1], [1.4])
+    still = Maneuver([0.0], {"hoist": [10.1], "drag": [1.4]})
     base = simulate(rig, dig_maneuver(), duration=8.0, rate_hz=50).table
     drag = simulate(rig, dig_maneuver(), physics=[parse_physics("aero_drag:cd=1.2")], duration=8.0, rate_hz=50).table
     assert np.abs(drag["bucket.x"] - base["bucket.x"]).max() > 1e-4

@@ -18,7 +18,7 @@ from dragline.simulate import (
 )
 from dragline.simulate._simulate import element_tensions, mechanical_energy
 
-STILL = Maneuver([0.0], [1.0], [1.0])  # reels unused by these rigs
+STILL = Maneuver([0.0])  # these rigs have no winch
 
 
 def _rope(start, end, length, particles, weight=1e-3, K=1e5):
@@ -113,7 +113,7 @@ def test_hanging_rope_converges_to_the_catenary():
 
 
 def test_frictionless_ring_carries_equal_tension_on_both_sides(rig):
-    model = assemble(rig, Maneuver([0.0], [8.6], [4.2]))
+    model = assemble(rig, Maneuver([0.0], {"hoist": [8.6], "drag": [4.2]}))
     eq = solve_statics(model)
     for rope in ("dump_rope", "hoist_rope"):
         tension = element_tensions(model, [0.0], eq.state[None], rope)[0]
@@ -125,7 +125,7 @@ def test_frictionless_ring_carries_equal_tension_on_both_sides(rig):
 
 def _kicked(rig, hoist, drag, speed):
     """Equilibrium at the given reel lengths with everything moving at +x speed."""
-    man = Maneuver([0.0], [hoist], [drag])
+    man = Maneuver([0.0], {"hoist": [hoist], "drag": [drag]})
     model = assemble(rig, man, dissipation=False)
     eq = solve_statics(model)
     y0 = eq.state.copy()
@@ -164,7 +164,7 @@ def test_dissipation_removes_energy(rig):
 
 
 def test_a_simulation_started_at_equilibrium_stays_there(rig):
-    man = Maneuver([0.0], [8.6], [4.2])
+    man = Maneuver([0.0], {"hoist": [8.6], "drag": [4.2]})
     res = simulate(rig, man, duration=2.0, rate_hz=100)
     table = res.table
     speeds = np.abs(table[[c for c in table.columns if c.endswith((".vx", ".vy", ".vz"))]].to_numpy())

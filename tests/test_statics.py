@@ -10,7 +10,7 @@ from dragline.simulate import Maneuver, assemble, solve_statics
 
 
 def _pose(rig, hoist, drag):
-    model = assemble(rig, Maneuver([0.0], [hoist], [drag]))
+    model = assemble(rig, Maneuver([0.0], {"hoist": [hoist], "drag": [drag]}))
     eq = solve_statics(model)
     assert eq.residual < 1e-6
     return eq.state, model
@@ -55,7 +55,7 @@ def test_builtin_rig_carries_the_papers_numbers(rig):
             assert spec.static_stiffness == rope["static_stiffness"]
             assert spec.viscous_stiffness == rope["viscous_stiffness"]
             assert spec.viscous_damping == rope["viscous_damping"]
-            if spec.reel is None:
+            if spec.winch is None:
                 assert spec.length == rope["length"]
     order = ["drag_rope", "dump_rope", "hoist_rope", "left_drag_chain", "left_lower_hoist_chain", "left_upper_hoist_chain"]
     for level in ("low", "baseline", "medium", "high"):
@@ -71,7 +71,7 @@ def test_fictitious_masses_leave_the_rest_pose_and_lengthen_the_relaxation_step(
     from dragline.simulate._model import kernel_model
     from dragline.simulate._statics import _fictitious_masses, _frozen, _gershgorin, initial_state
 
-    model = assemble(rig, Maneuver([0.0], [8.6], [4.2]))
+    model = assemble(rig, Maneuver([0.0], {"hoist": [8.6], "drag": [4.2]}))
     rest = solve_statics(model).state
     arrays = _frozen(model, 0.0)
     scaled = _fictitious_masses(model, arrays, initial_state(model), 0.0)
@@ -95,10 +95,10 @@ def test_the_rough_pose_is_kept_per_geometry_and_never_shared_between_callers(ri
     # points and lengths; a caller that moves its copy moves no one else's.
     from dragline.simulate._model import _hanging_block, rough_body_positions
 
-    first = rough_body_positions(rig, 8.6, 4.2)
+    first = rough_body_positions(rig, {"hoist": 8.6, "drag": 4.2})
     hits = _hanging_block.cache_info().hits
     first["bucket"] += 1.0
-    second = rough_body_positions(rig, 8.6, 4.2)
+    second = rough_body_positions(rig, {"hoist": 8.6, "drag": 4.2})
     assert _hanging_block.cache_info().hits == hits + 1
     np.testing.assert_array_equal(second["bucket"], first["bucket"] - 1.0)
-    assert rough_body_positions(rig, 9.0, 4.2)["bucket"][2] != second["bucket"][2]  # paid out: hangs elsewhere
+    assert rough_body_positions(rig, {"hoist": 9.0, "drag": 4.2})["bucket"][2] != second["bucket"][2]  # paid out: hangs elsewhere

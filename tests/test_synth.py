@@ -247,7 +247,7 @@ def test_session_holds_the_lab_record(run, cams):
     assert session.wand_length == WAND_LENGTH
     np.testing.assert_array_equal(session.lframe_points, lframe_points())
     np.testing.assert_allclose(np.linalg.norm(np.diff(truth["wand_points"], axis=1), axis=-1), WAND_LENGTH)
-    np.testing.assert_array_equal(session.maneuver["hoist_length"], run.model.maneuver.hoist_length)
+    np.testing.assert_array_equal(session.maneuver["hoist_length"], run.model.maneuver.lengths["hoist"])
 
 
 def test_same_seed_gives_identical_files_and_another_seed_does_not(run, cams, tmp_path):

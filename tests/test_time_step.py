@@ -42,7 +42,7 @@ def test_spectral_step_of_a_taut_string_is_its_highest_axial_mode(integrator, li
                              "weight_per_length": 1e-3, "static_stiffness": 1e4, "viscous_stiffness": 1.0,
                              "viscous_damping": 1.0}},
     })
-    model = assemble(rig, Maneuver([0.0], [1.0], [1.0]), dissipation=False)
+    model = assemble(rig, Maneuver([0.0]), dissipation=False)
     state = solve_statics(model).state
     a = model.arrays
     k = (a["seg_ks"][0] + a["seg_kv"][0]) / (length / (n + 1))

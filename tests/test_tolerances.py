@@ -29,7 +29,7 @@ def test_built_in_rig_states_a_tolerance_for_what_a_lab_knows_only_approximately
         assert f"bodies.{body}.mass" in names
     for group in ("wire_rope", "dump_rope", "chain"):
         assert f"ropes.{group}.static_stiffness" in names and f"ropes.{group}.viscous_damping" in names
-    assert {"reels.hoist.zero", "reels.drag.zero", "fixed_points.boom_pulley.x"} <= names
+    assert {"winches.hoist.zero", "winches.drag.zero", "fixed_points.boom_pulley.x"} <= names
     chain = next(p for p in rig.tolerances if p.name == "ropes.chain.viscous_damping")
     assert len(chain.targets) == 6 and chain.scale == "log"
     assert chain.tolerance == pytest.approx(math.log(2.0))  # factor 2: one sd of ln p
@@ -43,7 +43,7 @@ def test_built_in_rig_states_a_tolerance_for_what_a_lab_knows_only_approximately
     ("ropes.wire_rope.static_stiffness", {"relative": -0.1}, "positive finite"),
     ("ropes.wire_rope.static_stiffness", {"relative": float("inf")}, "positive finite"),
     ("ropes.chain.viscous_damping", {"factor": 0.5}, "above 1"),
-    ("reels.hoist.zero", {"relative": 0.1}, "positive nominal"),
+    ("winches.hoist.zero", {"relative": 0.1}, "positive nominal"),
     ("fixed_points.boom_pulley.x", {"absolute": True}, "positive finite"),
     ("fixed_points.boom_pulley.x", {"absolute": 0.01, "relative": 0.1}, "expected one of"),
 ])
@@ -76,9 +76,9 @@ def test_apply_moves_what_it_names_and_leaves_the_inputs_alone(rig):
         assert moved.ropes[rope].viscous_damping == pytest.approx(2 * rig.ropes[rope].viscous_damping)
     assert moved.ropes["hoist_rope"].static_stiffness == pytest.approx(1.15 * rig.ropes["hoist_rope"].static_stiffness)
     np.testing.assert_allclose(moved.fixed_points["boom_pulley"] - rig.fixed_points["boom_pulley"], [0.005, 0, 0.005])
-    np.testing.assert_allclose(moved_maneuver.hoist_length - maneuver.hoist_length, 0.01)
-    np.testing.assert_allclose(moved_maneuver.drag_length - maneuver.drag_length, 0.01)
-    np.testing.assert_array_equal(maneuver.hoist_length, dig_maneuver().hoist_length)
+    np.testing.assert_allclose(moved_maneuver.lengths["hoist"] - maneuver.lengths["hoist"], 0.01)
+    np.testing.assert_allclose(moved_maneuver.lengths["drag"] - maneuver.lengths["drag"], 0.01)
+    np.testing.assert_array_equal(maneuver.lengths["hoist"], dig_maneuver().lengths["hoist"])
 
 
 def test_draws_follow_the_tolerances_and_stop_at_the_limit(rig):
@@ -96,7 +96,7 @@ def test_draws_follow_the_tolerances_and_stop_at_the_limit(rig):
 def static_pair(rig):
     """The rig at rest, nominal and with the hoist reel's zero 10 mm out and the wire rope 10 % softer."""
     maneuver = dig_maneuver()
-    params = [p for p in rig.tolerances if p.name in ("reels.hoist.zero", "ropes.wire_rope.static_stiffness")]
+    params = [p for p in rig.tolerances if p.name in ("winches.hoist.zero", "ropes.wire_rope.static_stiffness")]
     coords = [0.01 if p.kind == "reel_zero" else math.log(0.9) for p in params]
     a = simulate(rig, maneuver, duration=0.05)
     b = simulate(*apply_parameters(rig, maneuver, params, coords), duration=0.05)

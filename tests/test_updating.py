@@ -27,8 +27,8 @@ from dragline.compare.diagnose._updating import (
 )
 from dragline.simulate import apply_parameters, dig_maneuver, parse_physics, simulate
 
-KEPT = ("reels.hoist.zero", "fixed_points.boom_pulley.z", "bodies.bucket.cg_x", "ropes.chain.viscous_damping")
-TRUTH_IN_TOLERANCES = {"reels.hoist.zero": 1.5, "fixed_points.boom_pulley.z": -1.0, "bodies.bucket.cg_x": 1.0,
+KEPT = ("winches.hoist.zero", "fixed_points.boom_pulley.z", "bodies.bucket.cg_x", "ropes.chain.viscous_damping")
+TRUTH_IN_TOLERANCES = {"winches.hoist.zero": 1.5, "fixed_points.boom_pulley.z": -1.0, "bodies.bucket.cg_x": 1.0,
                        "ropes.chain.viscous_damping": 0.0}
 NOISE = {"position": 5e-4, "angle": 5e-3, "rope_length": 5e-4}
 DURATION = 8.0

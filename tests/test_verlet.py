@@ -80,7 +80,7 @@ def test_an_element_turning_slack_makes_the_tracked_verlet_step_finer():
     # 0.75 of its limit); each interval with a slack change is done again
     # finer, and with Eq. 8's dissipation energy only falls.
     rig = load_rig()
-    man = Maneuver([0.0], [10.1], [1.4])
+    man = Maneuver([0.0], {"hoist": [10.1], "drag": [1.4]})
     model = assemble(rig, man, dissipation=False)
     y0 = solve_statics(model).state.copy()
     for b in range(model.n_bodies):

@@ -139,7 +139,7 @@ def phase4_drag(values):
 
 def _rest_height(rig, hoist, drag):
     """The bucket mass centre's z (m) at rest with these reel lengths."""
-    table = simulate(rig, Maneuver([0.0, 1.0], [hoist, hoist], [drag, drag]), duration=0.005, rate_hz=200.0).table
+    table = simulate(rig, Maneuver([0.0, 1.0], {"hoist": [hoist, hoist], "drag": [drag, drag]}), duration=0.005, rate_hz=200.0).table
     return float(table["bucket.z"].iloc[0])
 
 

@@ -1,6 +1,7 @@
 """The diagnosis: what physics the model leaves out, proven on the recording itself.
 
-One module per step (docs/diagnosis.md states the method):
+``diagnose`` runs ``_steps.STEPS`` in order over one ``_state.DiagnosisState``;
+the work is in one module per concern (docs/diagnosis.md states the method):
 
 - ``_locate``: where and when the nominal model misses (channel x window);
 - ``_updating``: the model's own numerical error (``model_error``) and the
@@ -11,8 +12,11 @@ One module per step (docs/diagnosis.md states the method):
 - ``_decide``: the verdict's rules;
 - ``_second_round``: the other candidates on top of a named one;
 - ``_report``: the diagnosis pages of the PDF;
-- ``_diagnose``: the recording read (a session, a VICON export or a
-  trajectory table) and the steps run in order.
+- ``_recording``: the recording read (a session, a VICON export or a
+  trajectory table) and checked against the maneuver;
+- ``_summary``: the document's free decay, metrics and calibration sections;
+- ``_state`` and ``_steps``: the state object and the steps over it;
+- ``_diagnose``: the steps run in order, the document read off the state.
 """
 
 from ._diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_diagnosis_json, write_diagnosis_report

@@ -133,7 +133,8 @@ def time_windows(maneuver, t_stop, t_end):
     t0 = float(t[0])
     stop = float(t_stop)
     if t.size > 2:
-        rates = np.column_stack([np.diff(maneuver.hoist_length), np.diff(maneuver.drag_length)]) / np.diff(t)[:, None]
+        lengths = [np.diff(v) for v in maneuver.lengths.values()] or [np.zeros(t.size - 1)]
+        rates = np.column_stack(lengths) / np.diff(t)[:, None]
         change = np.flatnonzero(np.any(np.abs(np.diff(rates, axis=0)) > 1e-6, axis=1)) + 1
         cuts = [float(t[i]) for i in change if t0 < t[i] < stop]
     else:

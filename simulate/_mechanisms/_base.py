@@ -49,24 +49,36 @@ class MechanismType:
 
 
 def rings(model, which):
-    """Ring indices a pulley mechanism acts on: the boom pulley, the hoist cluster's, or all."""
+    """Ring indices a pulley mechanism acts on: ``all``, or one ring by its site name, its point or its rope.
+
+    A ring's site name is its rope's ``ring_name`` in the rig file, else the
+    name of the point it sits at (``boom_pulley`` for ``fixed.boom_pulley``).
+    """
     if which == "all":
         return list(model.seg_ring.values())
-    names = {"boom": "hoist_rope", "hoist_cluster": "dump_rope"}
-    seg = names.get(which, which)
-    if seg not in model.seg_ring:
-        raise ValueError(f"pulley {which!r} unknown (boom, hoist_cluster or all)")
-    return [model.seg_ring[seg]]
+    sites = {}
+    for seg, ring in model.seg_ring.items():
+        spec = model.rig.ropes[seg]
+        for name in (spec.ring_site, spec.ring, spec.ring.partition(".")[2], seg):
+            sites.setdefault(name, []).append(ring)
+    if which not in sites:
+        names = sorted({model.rig.ropes[seg].ring_site for seg in model.seg_ring})
+        raise ValueError(f"pulley {which!r} unknown ({', '.join(names + ['all']) if names else 'the rig has no ring'})")
+    return sorted(set(sites[which]))
+
+
+# What a segment selector names: the kinds of the rig file (``_rig_schema.ROPE_KINDS``).
+SELECTOR_KINDS = {"ropes": ("rope", "cable"), "chains": ("chain",)}
 
 
 def segments(model, which, default_kind):
-    """Segments a joint mechanism acts on: ropes, chains, all, or one name."""
+    """Segments a joint mechanism acts on: ``ropes`` (kinds rope and cable), ``chains``, ``all``, or one name."""
     which = default_kind if which == "default" else which
     if which == "all":
         return list(range(len(model.seg_names)))
-    if which in ("ropes", "chains"):
-        suffix = which[:-1]
-        return [s for s, n in enumerate(model.seg_names) if n.endswith(suffix)]
+    if which in SELECTOR_KINDS:
+        kinds = SELECTOR_KINDS[which]
+        return [s for s, n in enumerate(model.seg_names) if model.rig.ropes[n].kind in kinds]
     if which in model.seg_names:
         return [model.seg_names.index(which)]
     raise ValueError(f"unknown segments {which!r} (ropes, chains, all, or a segment name)")

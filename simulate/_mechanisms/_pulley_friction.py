@@ -12,7 +12,7 @@ class PulleyFriction(MechanismType):
     units = {"mu": "-"}
     range = (0.005, 0.5)
     doc = ("ring friction coefficient (-), capstan T_low (e^(mu wrap) - 1) against the rope's "
-           "slide (stick or slip); pulley boom, hoist_cluster or all; plausible 0.02-0.3")
+           "slide (stick or slip); pulley = a ring's name, its rope, or all; plausible 0.02-0.3")
 
     def apply(self, model, parameters):
         # Capstan friction where the rope slides through a ring (kernel:

@@ -1,0 +1,262 @@
+"""The recording a diagnosis reads, and the checks that it belongs to the rig and its maneuver.
+
+A session directory, an MCAP session, a marker file or a trajectory table
+becomes the measured trajectory table (``load_recording``); the reel table
+must explain the recorded rope lengths (``check_maneuver``), whose clock
+offset ties the recording to the maneuver (``align_with_maneuver``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from ...capture import resolve_recording
+from ...simulate import ROPE_CHANNELS, Maneuver, dig_maneuver, load_rig, maneuver_from_table, read_maneuver_csv
+from .._align import estimate_time_offset, read_trajectory_table
+from ._locate import DYNAMIC_CHANNELS
+
+__all__ = ["load_recording", "check_channels", "rope_bias_allowance", "check_maneuver", "align_with_maneuver"]
+
+# The reel table must explain the recorded rope lengths: after aligning the
+# clocks, the measured length may differ from the nominal simulation's
+# (stretch included) by this much RMS about its mean, and on average (m).
+# A rope through a pulley ring gets more: friction or inertia in the ring
+# holds rope on one side (pulley friction at full lock moves 40 mm RMS and
+# 60 mm at the end of the dig maneuver), which is physics to diagnose, not a
+# wrong table; a rope straight from its reel is only stretched.
+ROPE_TOLERANCE = {"free": (0.02, 0.025), "ring": (0.08, 0.05)}
+# The rope lengths must move at all (m) for the clocks to be aligned.
+MIN_REEL_TRAVEL = 0.05
+# A free decay shorter than this after the reels stop is too short (s): over
+# one swing (0.6 Hz) plus the low-pass window.
+MIN_DECAY_S = 2.0
+# Channels needed at all: a table without the bucket is not this rig.
+REQUIRED_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch")
+
+
+def _read_maneuver_arg(maneuver):
+    if maneuver is None or isinstance(maneuver, Maneuver):
+        return maneuver
+    return dig_maneuver() if maneuver == "dig" else read_maneuver_csv(maneuver)
+
+
+def _session_maneuver(session, path):
+    cols = session.maneuver or {}
+    if "time" not in cols:
+        raise ValueError(f"{path}: the session holds no maneuver table; pass --maneuver dig|FILE.csv")
+    return maneuver_from_table(cols, f"{path} (session info)")
+
+
+def load_recording(path, maneuver=None, rig=None, calibration=None, progress=None, between=None):
+    """The measured trajectory table and the maneuver of a recording.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A session directory (``capture.mcap`` or, without one,
+        ``markers.csv``), a ``.mcap`` session file, a VICON-style marker CSV,
+        or a measured trajectory table (CSV with ``time`` and
+        ``<body>.<quantity>`` columns).
+    maneuver : Maneuver, "dig", path or None
+        The reel table; by default the session's (``maneuver.csv`` in the
+        directory, else the MCAP's session info), for a CSV a
+        ``maneuver.csv`` beside it, else the dig maneuver.
+    rig : Rig, optional
+    calibration : path, optional
+        ``cameras.json`` for a session; by default the one in the session
+        directory, else the cameras are calibrated from the session's
+        L-frame and wand takes.
+    progress : callable, optional
+        Receives one-line notes.
+    between : (str, str), optional
+        A marker file's start and end event labels: the trial between them
+        (``reconstruct_marker_file``); ``source["cut"]`` says what was kept.
+
+    Returns
+    -------
+    measured : pandas.DataFrame
+    maneuver : Maneuver
+    source : dict
+        What was read and how (JSON-ready).
+
+    Raises
+    ------
+    ValueError
+        Unreadable input, a different rig's markers, no maneuver.
+    """
+    from ...capture import read_session
+
+    note = progress or (lambda msg: None)
+    path = os.fspath(path)
+    rig = load_rig() if rig is None else rig
+    maneuver = _read_maneuver_arg(maneuver)
+    source = {"input": path}
+    recording = resolve_recording(path, tables=True)
+    kind, file, folder = recording.kind, recording.file, recording.folder
+    source["kind"] = kind
+    beside = os.path.join(folder, "maneuver.csv") if folder else None
+
+    if kind == "session":
+        session, report = read_session(file)
+        if report.get("lost", "nothing") != "nothing":
+            note(f"{file} is {'cut short' if report.get('truncated') else 'damaged'}; lost {report.get('lost')}")
+        if maneuver is None:
+            if beside and os.path.isfile(beside) and os.path.dirname(os.path.abspath(file)) == os.path.abspath(folder):
+                maneuver, source["maneuver"] = read_maneuver_csv(beside), beside
+            else:
+                maneuver, source["maneuver"] = _session_maneuver(session, file), f"{file} (session info)"
+        cameras, source["calibration"] = _session_cameras(session, file, folder, calibration, note)
+        from ...reconstruct import reconstruct_session
+
+        try:
+            table, _, _, _ = reconstruct_session(session, cameras, rig=rig)
+        except ValueError as exc:
+            raise ValueError(f"{file}: {exc}") from None
+    elif kind == "markers":
+        from ...reconstruct import reconstruct_marker_file
+
+        table, summary = reconstruct_marker_file(file, rig=rig, between=between)
+        if between is not None:
+            source["cut"] = summary["cut"]
+    else:
+        table = read_trajectory_table(file, "measured")
+    if maneuver is None:
+        if beside and os.path.isfile(beside):
+            maneuver, source["maneuver"] = read_maneuver_csv(beside), beside
+        else:
+            maneuver, source["maneuver"] = dig_maneuver(), "dig (default; no maneuver table came with the input)"
+            note("no maneuver table came with the input; using the dig maneuver (checked against the rope lengths)")
+    source.setdefault("maneuver", "given")
+    return table, maneuver, source
+
+
+def _session_cameras(session, file, folder, calibration, note):
+    from ...capture import calibrate, load_cameras
+
+    if calibration is None and folder and os.path.isfile(os.path.join(folder, "cameras.json")):
+        calibration = os.path.join(folder, "cameras.json")
+    if calibration is not None:
+        if not os.path.isfile(calibration):
+            raise ValueError(f"{calibration}: no such calibration file")
+        return load_cameras(calibration), calibration
+    if session.lframe is None or session.wand is None or session.wand_length is None:
+        raise ValueError(f"{file}: no calibration given and the session lacks the L-frame or wand take")
+    note("calibrating the cameras from the session's L-frame and wand takes")
+    try:
+        cameras, _ = calibrate(session.lframe, session.wand, session.wand_length, session.lframe_points,
+                               session.image_size, session.nominal_focal_px, names=session.camera_names)
+    except ValueError as exc:
+        raise ValueError(f"{file}: calibration failed: {exc}") from None
+    return cameras, "calibrated from the session's L-frame and wand takes"
+
+
+def check_channels(measured):
+    missing = [c for c in REQUIRED_CHANNELS if c not in measured.columns
+               or np.isfinite(np.asarray(measured[c], float)).mean() < 0.5]
+    if missing:
+        raise ValueError(f"the recording lacks {', '.join(missing)} (or they are mostly missing): "
+                         "not a recording of this rig's bucket")
+    channels = [c for c in DYNAMIC_CHANNELS if c in measured.columns
+                and np.isfinite(np.asarray(measured[c], float)).mean() >= 0.5]
+    return channels
+
+
+def rope_bias_allowance(rig, nominal_table, sigmas=2.5):
+    """How far (m) each rope's mean recorded length may sit from the nominal model's, given the rig's tolerances.
+
+    A rope's recorded (stretched) length moves with its reel's zero and,
+    through its static stretch, with its stiffness: ``sigmas`` standard
+    deviations of both together. Zero for a rig without tolerances.
+    """
+    out = {}
+    first = nominal_table["time"] == float(nominal_table["time"].iloc[0])
+    for channel in ROPE_CHANNELS:
+        rope = channel.split(".")[0]
+        spec = rig.ropes.get(rope)
+        reel_col = f"{rope}.reel_length"
+        if spec is None or channel not in nominal_table or reel_col not in nominal_table:
+            continue
+        stretch = float(nominal_table.loc[first, channel].iloc[0] - nominal_table.loc[first, reel_col].iloc[0])
+        var = 0.0
+        for p in rig.tolerances:
+            if p.kind == "reel_zero" and spec.winch in p.targets:
+                var += p.tolerance**2
+            elif p.kind == "rope" and p.field == "static_stiffness" and rope in p.targets:
+                var += (abs(stretch) * p.tolerance) ** 2
+        out[channel] = sigmas * math.sqrt(var)
+    return out
+
+
+def check_maneuver(measured, estimate, rig, bias_allowance=None):
+    """Raise ValueError unless the reel table explains the recorded rope lengths.
+
+    Parameters
+    ----------
+    measured : pandas.DataFrame
+    estimate : dict
+        ``estimate_time_offset(measured, nominal_table)``.
+    rig : Rig
+        Says which ropes pass a pulley ring (looser tolerance, see
+        ``ROPE_TOLERANCE``).
+    bias_allowance : dict, optional
+        Channel -> further mean offset (m) the rig's tolerances allow
+        (``rope_bias_allowance``).
+    """
+    ropes = [c for c in ROPE_CHANNELS if c in measured.columns and np.isfinite(np.asarray(measured[c], float)).any()]
+    if not ropes:
+        raise ValueError("the recording has no rope lengths; cannot check it against the maneuver table")
+    travel = max(np.nanmax(np.asarray(measured[c], float)) - np.nanmin(np.asarray(measured[c], float)) for c in ropes)
+    if travel < MIN_REEL_TRAVEL:
+        raise ValueError(f"the recorded rope lengths change by {1000 * travel:.0f} mm at most: the recording "
+                         "holds no reeling, so its clock cannot be tied to the maneuver table")
+    if not estimate["estimated"]:
+        raise ValueError(f"cannot align the recording with the maneuver table: {estimate['reason']}")
+    if estimate["at_search_edge"]:
+        raise ValueError("the maneuver table does not match the recorded rope lengths: the best clock offset "
+                         f"lies at the search limit ({estimate['offset']:+.2f} s)")
+    bad = []
+    for rope, r in estimate["ropes"].items():
+        rms_tol, bias_tol = ROPE_TOLERANCE[_rope_kind(rig, rope)]
+        bias_tol += (bias_allowance or {}).get(rope, 0.0)
+        if r["residual_rms"] > rms_tol:
+            bad.append((r["residual_rms"] / rms_tol,
+                        f"{rope} by {1000 * r['residual_rms']:.0f} mm RMS (tolerance {1000 * rms_tol:.0f} mm)"))
+        elif abs(r["bias"]) > bias_tol:
+            bad.append((abs(r["bias"]) / bias_tol,
+                        f"{rope} by {1000 * abs(r['bias']):.0f} mm on average, "
+                        f"{'longer' if r['bias'] > 0 else 'shorter'} (tolerance {1000 * bias_tol:.0f} mm)"))
+    if bad:
+        raise ValueError("the maneuver table does not match the recorded rope lengths: after aligning the clocks "
+                         "they differ from what the table gives: " + "; ".join(t for _, t in sorted(bad, reverse=True)))
+
+
+def _rope_kind(rig, channel):
+    rope = rig.ropes.get(channel.split(".")[0])
+    return "ring" if rope is not None and rope.ring is not None else "free"
+
+
+def align_with_maneuver(measured, nominal_table, rig):
+    """Clock offset of the recording, from the rope lengths that run straight from their reels.
+
+    A rope through a pulley ring is used only when no other one is
+    measured: ring friction or inertia changes its length in ways that would
+    pull the offset.
+    """
+    ropes = [c for c in ROPE_CHANNELS if c in measured.columns and np.isfinite(np.asarray(measured[c], float)).any()]
+    free = [c for c in ropes if _rope_kind(rig, c) == "free"]
+    use = free or ropes
+    if use == ropes:
+        return estimate_time_offset(measured, nominal_table)
+    drop = [c for c in ropes if c not in use]
+    estimate = estimate_time_offset(measured.drop(columns=drop), nominal_table.drop(columns=drop))
+    if estimate["estimated"]:
+        # Every rope's agreement at that offset (a zero-width search at the shifted clock).
+        shifted = measured.assign(time=np.asarray(measured["time"], float) - estimate["offset"])
+        estimate["ropes"] = estimate_time_offset(shifted, nominal_table, max_offset=0.0)["ropes"]
+    estimate["channels_used"] = use
+    return estimate
+
+

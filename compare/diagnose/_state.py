@@ -1,0 +1,137 @@
+"""The one object the diagnosis's steps pass along (``_steps``).
+
+Each step reads what the steps before it filled in and returns a new
+state with its own part added (``dataclasses.replace``): the input state
+is never modified, so a step can be run, inspected and re-run alone.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["Recording", "NullTest", "DiagnosisState"]
+
+
+@dataclass(frozen=True)
+class Recording:
+    """The measured channels on the model's clock.
+
+    Attributes
+    ----------
+    time : ndarray (n,)
+        Sample times (s) on the simulation's clock.
+    channels : list of str
+    values : ndarray (n, c)
+        Measured channels, SI.
+    noise : ndarray (c,)
+        Each channel's measurement noise (SI), from the recording itself.
+    rate_hz : float
+    t_stop : float
+        When the reels stop (s, model clock): the free decay follows.
+    stop_method : str
+    offset : float
+        Recording clock minus model clock (s).
+    alignment : dict
+        ``align_with_maneuver``'s estimate.
+    windows : list of (str, float, float)
+        The maneuver's phases and the free decay.
+    lowpass_width : int
+        Samples of the structure low-pass.
+    """
+
+    time: np.ndarray
+    channels: list
+    values: np.ndarray
+    noise: np.ndarray
+    rate_hz: float
+    t_stop: float
+    stop_method: str
+    offset: float
+    alignment: dict
+    windows: list
+    lowpass_width: int
+
+
+@dataclass(frozen=True)
+class NullTest:
+    """What noise alone and the model's own error give (``_hypotheses.null_threshold``, ``_decide``)."""
+
+    threshold: float
+    noise_threshold: float
+    surrogate_quantile: float
+    kappa: float
+    allowance: float
+    excess: float
+    share: float
+
+
+@dataclass(frozen=True)
+class DiagnosisState:
+    """A diagnosis in progress: the inputs, then each step's results.
+
+    Inputs: ``measured`` (trajectory table), ``rig``, ``maneuver``,
+    ``discretization``, ``candidate_names`` (None: every candidate),
+    ``workers`` (int or Executor), ``seed``, ``source``, ``note``
+    (progress callable) and ``started`` (perf_counter at the start).
+    """
+
+    measured: pd.DataFrame
+    rig: object
+    maneuver: object
+    discretization: object = "baseline"
+    candidate_names: tuple | None = None
+    workers: object = 2
+    seed: int = 0
+    source: dict | None = None
+    note: object = None
+    started: float = 0.0
+
+    # align_recording: the recording, the nominal run, the problem on the nominal rig
+    recording: Recording | None = None
+    nominal_run: object = None
+    nominal_sim: np.ndarray | None = None
+    plain_problem: object = None
+    nominal_ctx: dict | None = None
+    # locate_nominal
+    r_nominal: np.ndarray | None = None
+    nominal_nuisance: tuple | None = None
+    located_nominal: list = field(default_factory=list)
+    # update_rig: the model the mechanisms are fitted on
+    problem: object = None
+    ctx: dict | None = None
+    base_sim: np.ndarray | None = None
+    update: dict | None = None
+    error_directions: list = field(default_factory=list)
+    model_error_block: dict | None = None
+    model_error_sims: int = 0
+    # locate_updated
+    base_eval: dict | None = None
+    r_base: np.ndarray | None = None
+    located: list = field(default_factory=list)
+    structured_before: list = field(default_factory=list)
+    # fit_mechanisms, refit_jointly
+    candidates: list = field(default_factory=list)
+    runnable: list = field(default_factory=list)
+    skipped: list = field(default_factory=list)
+    points: dict = field(default_factory=dict)
+    scored: dict = field(default_factory=dict)
+    joints: dict = field(default_factory=dict)
+    # test_against_noise, score_hypotheses
+    null: NullTest | None = None
+    hypotheses: list = field(default_factory=list)
+    fitted_series: dict = field(default_factory=dict)
+    residuals: dict = field(default_factory=dict)
+    # locate_after, judge_offsets, decide_verdict, test_second_mechanism
+    after_name: str | None = None
+    located_after: list = field(default_factory=list)
+    structured_after: list = field(default_factory=list)
+    offsets: dict = field(default_factory=dict)
+    offsets_left: dict | None = None
+    too_far: list = field(default_factory=list)
+    offsets_note: str | None = None
+    verdict: str | None = None
+    reason: str = ""
+    second: dict | None = None
