@@ -79,7 +79,8 @@ def run(args):
 
     study = None
     if args.discretization_study:
-        rig, maneuver, physics = rig_from_args(args), maneuver_from_args(args), physics_from_args(args)
+        rig = rig_from_args(args)
+        maneuver, physics = maneuver_from_args(args, rig), physics_from_args(args)
         t = np.asarray(simulated["time"], float)
         rate = round(1.0 / float(np.median(np.diff(t))), 6)
         duration = float(t[-1]) - float(maneuver.time[0])

@@ -36,7 +36,7 @@ def run(args):
     check_output_path(args.out)
     guard_outputs([args.rig, args.maneuver], files=[args.out])
     rig = rig_from_args(args)
-    maneuver = maneuver_from_args(args)
+    maneuver = maneuver_from_args(args, rig)
     discretization = discretization_from_args(args, rig)
     physics = physics_from_args(args)
     t0 = time.perf_counter()
@@ -52,8 +52,8 @@ def run(args):
                          "(leave --dt out and the step follows it)") from None
     except ValueError as exc:
         text = str(exc)
-        if args.maneuver and text.startswith("the maneuver"):
-            raise ValueError(f"{args.maneuver}: {exc}") from None
+        if text.startswith("the maneuver"):
+            raise ValueError(f"{args.maneuver or rig.source + ' (its own maneuver)'}: {exc}") from None
         if args.dt is not None and "step needs" in text:
             raise ValueError(f"--dt {args.dt:g}: {exc}") from None
         if "records of" in text:

@@ -90,7 +90,7 @@ def _check_args(args):
 def run(args):
     _check_args(args)
     rig = rig_from_args(args)
-    maneuver = maneuver_from_args(args)
+    maneuver = maneuver_from_args(args, rig)
     discretization = discretization_from_args(args, rig)
     physics = physics_from_args(args)
     t0 = time.perf_counter()
@@ -107,7 +107,7 @@ def run(args):
         described = {
             "physics": [{"name": m.name, "parameters": dict(m.parameters)} for m in physics],
             "rig": args.rig or "built-in",
-            "maneuver": args.maneuver,
+            "maneuver": args.maneuver or "the rig's own",
             "discretization": args.discretization,
             "duration_s": args.duration,
             "rate_hz": args.rate,

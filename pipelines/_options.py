@@ -7,7 +7,9 @@ import math
 import os
 
 from dragline.simulate import (
+    BUILT_IN_RIGS,
     DISCRETIZATION_LEVELS,
+    default_maneuver,
     dig_maneuver,
     load_rig,
     parse_physics,
@@ -43,9 +45,12 @@ def number(kind="positive", integer=False, maximum=None):
 
 
 def add_model_options(parser, physics=True):
-    parser.add_argument("--rig", metavar="FILE", help="rig TOML file (default: the built-in 1/16-scale rig)")
-    parser.add_argument("--maneuver", default="dig", metavar="dig|FILE.csv",
-                        help="maneuver: the paper's dig or a CSV with time and a <winch>_length column per winch")
+    parser.add_argument("--rig", metavar="NAME|FILE",
+                        help=f"a built-in machine ({', '.join(BUILT_IN_RIGS)}; default {next(iter(BUILT_IN_RIGS))}) "
+                             "or a rig TOML file")
+    parser.add_argument("--maneuver", default=None, metavar="dig|FILE.csv",
+                        help="maneuver: a CSV with time and a <winch>_length column per winch (and moving points' "
+                             ".x, .y, .z), or the paper's dig; default: the rig's own")
     parser.add_argument("--discretization", default="baseline", metavar="LEVEL|ROPE=N,...",
                         help=f"particles per rope: {', '.join(DISCRETIZATION_LEVELS)}, or counts like hoist_rope=20,drag_chain=6")
     if physics:
@@ -57,7 +62,10 @@ def rig_from_args(args):
     return load_rig(args.rig)
 
 
-def maneuver_from_args(args):
+def maneuver_from_args(args, rig=None):
+    """The --maneuver option: a built-in maneuver's name, a CSV, or (None) the rig's own."""
+    if args.maneuver is None:
+        return default_maneuver(load_rig() if rig is None else rig)
     return dig_maneuver() if args.maneuver == "dig" else read_maneuver_csv(args.maneuver)
 
 
