@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from ..simulate import MAX_TABLE_ROWS as MAX_ROWS
-from ..simulate import ROPE_CHANNELS, check_trajectory_columns, trajectory_columns
+from ..simulate import check_trajectory_columns, trajectory_columns
 
 __all__ = [
     "read_trajectory_table",
@@ -30,6 +30,7 @@ __all__ = [
     "estimate_time_offset",
     "align_tables",
     "reels_stop_time",
+    "maneuver_stop_time",
 ]
 
 # Default largest |offset| searched (s), further capped at a quarter of the
@@ -231,7 +232,8 @@ def estimate_time_offset(measured, simulated, max_offset=None):
     limit = min(MAX_OFFSET, 0.25 * duration) if max_offset is None else float(max_offset)
     if not limit >= 0.0:
         raise ValueError(f"max_offset must be non-negative, got {max_offset}")
-    usable, _ = channel_status(measured, simulated, ROPE_CHANNELS)
+    ropes = [c for c in simulated.columns if c.endswith(".length") and not c.endswith(".reel_length")]
+    usable, _ = channel_status(measured, simulated, ropes)
     result = {
         "offset": 0.0,
         "estimated": False,
@@ -329,8 +331,8 @@ def align_tables(measured, simulated, time_offset=0.0, channels=None):
 
 
 def _reel_columns_stop(table):
-    """Last time either ``*.reel_length`` column changes, or None."""
-    cols = [c for c in ("hoist_rope.reel_length", "drag_rope.reel_length") if c in table.columns]
+    """Last time any ``<rope>.reel_length`` column (a winch's length) changes, or None."""
+    cols = [c for c in table.columns if c.endswith(".reel_length")]
     if not cols:
         return None
     t = np.asarray(table["time"], float)
@@ -352,8 +354,8 @@ def _rate_stop(table):
     step = _step(t)
     half = max(1, int(round(0.5 * RATE_WINDOW / step)))
     stops = []
-    for c in ROPE_CHANNELS:
-        if c not in table.columns:
+    for c in table.columns:
+        if not c.endswith(".length") or c.endswith(".reel_length"):
             continue
         y = np.asarray(table[c], float)
         ok = np.isfinite(y)
@@ -391,12 +393,25 @@ def _rate_stop(table):
     return max(stops) if stops else None
 
 
-def reels_stop_time(measured, simulated, time_offset=0.0):
-    """When both reels stop, on the simulation's clock.
+def maneuver_stop_time(maneuver):
+    """The last time (s) any winch's length or moving point of a maneuver changes; its start if none does."""
+    t = np.asarray(maneuver.time, float)
+    columns = list(maneuver.lengths.values()) + [xyz[:, k] for xyz in maneuver.points.values() for k in range(3)]
+    last = float(t[0])
+    for y in columns:
+        scale = max(1.0, float(np.max(np.abs(y))))
+        moving = np.flatnonzero(np.abs(np.diff(y)) > 1e-9 * scale)
+        if moving.size:
+            last = max(last, float(t[moving[-1] + 1]))
+    return last
 
-    Tried in this order: the ``hoist_rope.reel_length`` and
-    ``drag_rope.reel_length`` columns of the simulated table (the reel
-    table the model was driven by), the same columns in the measured table,
+
+def reels_stop_time(measured, simulated, time_offset=0.0):
+    """When every winch stops, on the simulation's clock.
+
+    Tried in this order: the ``<rope>.reel_length`` columns of the
+    simulated table (the winch lengths the model was driven by), the same
+    columns in the measured table,
     then the rope lengths' rates - measured first, as the measurement sees
     the real reels - where a rope counts as reeling while the least-squares
     slope of its length over ``RATE_WINDOW`` exceeds ``RATE_FRACTION`` of

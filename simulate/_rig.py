@@ -131,6 +131,7 @@ class Rig:
     maneuver: str | None = None
     rough_pose: RoughPose | None = None
     release: dict | None = None  # body -> {"position", "angles"}: where the rig's own trial lets go
+    report: dict = field(default_factory=dict)  # decay_channels, overlay_channels: the reports' choice
 
     def particle_counts(self, discretization="baseline"):
         """Particles per rope segment.
@@ -304,6 +305,7 @@ def _rig_from_doc(doc, source):
         maneuver=doc.get("maneuver"),
         rough_pose=_rough_pose(doc.get("rough_pose"), bodies, ropes, source),
         release=_release(doc.get("release"), bodies, source),
+        report={k: tuple(v) for k, v in doc.get("report", {}).items()},
     )
 
 

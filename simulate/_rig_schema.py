@@ -127,6 +127,15 @@ class Release(_Strict):
         None, min_length=3, max_length=3, description="roll, pitch, yaw (deg), the output sequence; default level")
 
 
+class Report(_Strict):
+    """Which channels the reports single out (the dragline's: the paper's choice); by default all."""
+
+    decay_channels: list[Annotated[str, Field(min_length=1)]] = Field(
+        default_factory=list, description="the diagnosis's free-decay table, `<entity>.<quantity>`")
+    overlay_channels: list[Annotated[str, Field(min_length=1)]] = Field(
+        default_factory=list, description="the diagnosis report's measured-against-model pages")
+
+
 class RigFile(_Strict):
     """A whole rig."""
 
@@ -141,6 +150,7 @@ class RigFile(_Strict):
     maneuver: Optional[str] = Field(None, min_length=1, description="the rig's own maneuver: a CSV beside the file, "
                                                                      "or a built-in generator's name")
     rough_pose: Optional[RoughPose] = Field(None, description="where the statics start, below")
+    report: Optional[Report] = Field(None, description="the reports' channels, below")
     release: dict[str, Release] = Field(default_factory=dict, description="the rig's own trial starts from a "
                                                                         "release of these bodies, below")
     tolerances: dict[str, Any] = Field(default_factory=dict, description="docs/rig-file.md")
@@ -185,6 +195,6 @@ def rig_markdown():
     header = ["| key | type | default | allowed | meaning |", "|---|---|---|---|---|"]
     blocks = [header + fields_markdown(RigFile)]
     for model, prefix in ((Body, "bodies.NAME."), (Rope, "ropes.NAME."), (Winch, "winches.NAME."), (Discretization, "discretization."),
-                          (RoughPose, "rough_pose."), (Release, "release.BODY.")):
+                          (RoughPose, "rough_pose."), (Release, "release.BODY."), (Report, "report.")):
         blocks.append(header + fields_markdown(model, prefix))
     return "\n\n".join("\n".join(b) for b in blocks) + "\n"

@@ -250,3 +250,54 @@ def test_every_built_in_machine_runs_its_own_maneuver_with_its_own_channels(name
     for rope in rig.winches.values():
         assert f"{rope}.length" in table.columns
     assert np.isfinite(table.to_numpy()).all()
+
+
+# ---------------------------------------------------------------- the diagnosis on another machine
+
+PENDULUM_NOISE = {"position": 5e-4, "angle": 5e-3}  # m, rad: a lab's reconstruction
+
+
+def _pendulum_recording(physics, seed):
+    """The pendulum's own trial (a release) simulated with ``physics``, white noise on its motion."""
+    from dragline.simulate import parse_physics
+
+    rig = load_rig("pendulum")
+    run = simulate(rig, physics=[parse_physics(p) for p in physics], duration=16.0, rate_hz=100.0,
+                   discretization="low")
+    rng = np.random.default_rng(seed)
+    table = run.table[["time"] + [c for c in run.table.columns if c.startswith("ball.")]].copy()
+    for c in table.columns[1:]:
+        kind = "angle" if c.rsplit(".", 1)[1] in ("roll", "pitch", "yaw", "p", "q", "r") else "position"
+        table[c] = table[c] + rng.normal(0.0, PENDULUM_NOISE[kind], len(table))
+    return rig, table
+
+
+@pytest.fixture(scope="module")
+def pendulum_aero_diagnosis():
+    from dragline.compare.diagnose import diagnose
+
+    rig, table = _pendulum_recording(["aero_drag:cd=3.0"], seed=5)
+    return diagnose(table, rig=rig, discretization="low",
+                    candidates=["aero_drag", "rope_bending_damping", "pulley_friction", "chain_link_friction"])
+
+
+def test_the_diagnosis_reads_a_pendulum_from_its_rig_and_names_the_hidden_drag(pendulum_aero_diagnosis):
+    doc = pendulum_aero_diagnosis.doc
+    assert doc["verdict"] == "aero_drag", doc["reason"]
+    named = next(h for h in doc["hypotheses"] if h["name"] == "aero_drag")
+    assert named["parameters"]["cd"] == pytest.approx(3.0, rel=0.25)
+    # Its channels are the ball's that swing (a planar release: no y, roll or yaw), its clock the release.
+    assert set(doc["channels"]) == {"ball.x", "ball.z", "ball.pitch"}
+    assert doc["alignment"]["time_offset"] == 0.0 and doc["alignment"]["reels_stop"] == 0.0
+    assert [w["window"] for w in doc["windows"]] == ["free decay"]
+    # What the machine cannot hold is skipped, saying why.
+    skipped = {s["name"]: s["reason"] for s in doc["skipped"]}
+    assert "no ring" in skipped["pulley_friction"] and "kind chain" in skipped["chain_link_friction"]
+
+
+def test_the_diagnosis_of_a_pendulum_with_nothing_hidden_is_none():
+    from dragline.compare.diagnose import diagnose
+
+    rig, table = _pendulum_recording([], seed=6)
+    doc = diagnose(table, rig=rig, discretization="low", candidates=["aero_drag", "rope_bending_damping"]).doc
+    assert doc["verdict"] == "none", doc["reason"]

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...capture import json_ready, write_json
-from ...simulate import SimulationError, StaticsError, dig_maneuver, load_rig
+from ...simulate import SimulationError, StaticsError, default_maneuver, load_rig
 from .._executor import as_executor
 from ._band import RESOLVED_HZ, RESOLVED_MIN
 from ._hypotheses import BLOCK_S, DECAY_WEIGHT, MIN_IMPROVEMENT, NULL_QUANTILE, NULL_SURROGATES
@@ -31,7 +31,7 @@ from ._locate import LOWPASS_S, structure_threshold
 from ._recording import load_recording
 from ._state import DiagnosisState
 from ._steps import STEPS
-from ._summary import before_after_metrics, calibration_doc, free_decay_section
+from ._summary import before_after_metrics, calibration_doc, free_decay_section, report_channels
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json", "write_diagnosis_report"]
 
@@ -62,6 +62,8 @@ class Diagnosis:
     located : dict
         ``before`` (nominal) and ``after`` (best significant candidate):
         every channel-window entry of ``_locate.locate_mismatch``.
+    overlay_channels : list of str
+        The channels the report draws measured against the models.
     """
 
     doc: dict
@@ -72,6 +74,7 @@ class Diagnosis:
     updated: np.ndarray | None = None
     fitted: dict = field(default_factory=dict)
     located: dict = field(default_factory=dict)
+    overlay_channels: list = field(default_factory=list)
 
 
 
@@ -85,7 +88,8 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         Measured trajectory table (docs/conventions.md), any clock: aligned to the
         simulation from the rope lengths.
     maneuver : Maneuver, optional
-        The reel table of the recording (dig maneuver by default).
+        The maneuver of the recording (the rig's own by default: the dig for
+        the built-in rig).
     rig : Rig, optional
     discretization : str or dict
         Of every simulation (``baseline`` by default).
@@ -132,8 +136,8 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         A table of another rig, a maneuver the rope lengths do not follow,
         no free decay.
     """
-    state = DiagnosisState(measured=measured, rig=load_rig() if rig is None else rig,
-                           maneuver=dig_maneuver() if maneuver is None else maneuver,
+    rig = load_rig() if rig is None else rig
+    state = DiagnosisState(measured=measured, rig=rig, maneuver=default_maneuver(rig) if maneuver is None else maneuver,
                            discretization=discretization, candidate_names=candidates, workers=workers, seed=seed,
                            source=source, note=progress, started=_time.perf_counter())
     for step in STEPS:
@@ -166,7 +170,8 @@ def diagnosis_of(state):
         "second_mechanism": second,
         "skipped": state.skipped,
         "free_decay": free_decay_section(time, channels, measured, nominal, fitted, shown, rec.t_stop,
-                                         updated=updated),
+                                         updated=updated,
+                                         decay_channels=report_channels(state.rig, channels, "decay_channels")),
         "metrics": before_after_metrics(time, channels, measured, nominal, fitted, shown, rec.t_stop),
         "null_test": {"threshold": null.threshold, "noise_threshold": null.noise_threshold,
                       "surrogate_quantile": null.surrogate_quantile, "quantile": NULL_QUANTILE,
@@ -193,7 +198,8 @@ def diagnosis_of(state):
     }
     return Diagnosis(doc=json_ready(doc), time=time, channels=channels, measured=measured, nominal=nominal,
                      updated=updated, fitted=dict(state.fitted_series),
-                     located={"before": json_ready(state.located), "after": json_ready(state.located_after)})
+                     located={"before": json_ready(state.located), "after": json_ready(state.located_after)},
+                     overlay_channels=report_channels(state.rig, channels, "overlay_channels"))
 
 
 def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretization="baseline", candidates=None,

@@ -124,7 +124,8 @@ def structure_threshold(channel, sigma, width):
 def time_windows(maneuver, t_stop, t_end):
     """The maneuver's phases and the free decay, as ``(label, t_start, t_end)``.
 
-    Phases run between the reel table's rows where a reel's speed changes;
+    Phases run between the maneuver's rows where a winch's speed or a moving
+    point's velocity changes;
     phases shorter than ``MIN_WINDOW_S`` join the next; a table of more
     than ``MAX_PHASES`` phases (a smooth profile) is cut into 1 s windows.
     The free decay runs from ``t_stop`` to ``t_end``.
@@ -133,8 +134,9 @@ def time_windows(maneuver, t_stop, t_end):
     t0 = float(t[0])
     stop = float(t_stop)
     if t.size > 2:
-        lengths = [np.diff(v) for v in maneuver.lengths.values()] or [np.zeros(t.size - 1)]
-        rates = np.column_stack(lengths) / np.diff(t)[:, None]
+        moves = [np.diff(v) for v in maneuver.lengths.values()]
+        moves += [np.diff(xyz[:, k]) for xyz in maneuver.points.values() for k in range(3)]
+        rates = np.column_stack(moves or [np.zeros(t.size - 1)]) / np.diff(t)[:, None]
         change = np.flatnonzero(np.any(np.abs(np.diff(rates, axis=0)) > 1e-6, axis=1)) + 1
         cuts = [float(t[i]) for i in change if t0 < t[i] < stop]
     else:

@@ -14,11 +14,19 @@ import os
 import numpy as np
 
 from ...capture import resolve_recording
-from ...simulate import ROPE_CHANNELS, Maneuver, dig_maneuver, load_rig, maneuver_from_table, read_maneuver_csv
+from ...simulate import (
+    Maneuver,
+    default_maneuver,
+    dig_maneuver,
+    load_rig,
+    maneuver_from_table,
+    read_maneuver_csv,
+    rope_channels,
+)
 from .._align import estimate_time_offset, read_trajectory_table
-from ._locate import DYNAMIC_CHANNELS
 
-__all__ = ["load_recording", "check_channels", "rope_bias_allowance", "check_maneuver", "align_with_maneuver"]
+__all__ = ["load_recording", "candidate_channels", "check_channels", "moving_channels", "rope_bias_allowance",
+           "check_maneuver", "align_with_maneuver"]
 
 # The reel table must explain the recorded rope lengths: after aligning the
 # clocks, the measured length may differ from the nominal simulation's
@@ -33,8 +41,8 @@ MIN_REEL_TRAVEL = 0.05
 # A free decay shorter than this after the reels stop is too short (s): over
 # one swing (0.6 Hz) plus the low-pass window.
 MIN_DECAY_S = 2.0
-# Channels needed at all: a table without the bucket is not this rig.
-REQUIRED_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch")
+# A channel a recording measures on fewer than this share of its samples is not used.
+MEASURED_SHARE = 0.5
 
 
 def _read_maneuver_arg(maneuver):
@@ -127,8 +135,9 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
         if beside and os.path.isfile(beside):
             maneuver, source["maneuver"] = read_maneuver_csv(beside), beside
         else:
-            maneuver, source["maneuver"] = dig_maneuver(), "dig (default; no maneuver table came with the input)"
-            note("no maneuver table came with the input; using the dig maneuver (checked against the rope lengths)")
+            maneuver = default_maneuver(rig)
+            source["maneuver"] = "the rig's own (default; no maneuver table came with the input)"
+            note("no maneuver table came with the input; using the rig's own (checked against the rope lengths)")
     source.setdefault("maneuver", "given")
     return table, maneuver, source
 
@@ -153,15 +162,48 @@ def _session_cameras(session, file, folder, calibration, note):
     return cameras, "calibrated from the session's L-frame and wand takes"
 
 
-def check_channels(measured):
-    missing = [c for c in REQUIRED_CHANNELS if c not in measured.columns
-               or np.isfinite(np.asarray(measured[c], float)).mean() < 0.5]
-    if missing:
-        raise ValueError(f"the recording lacks {', '.join(missing)} (or they are mostly missing): "
-                         "not a recording of this rig's bucket")
-    channels = [c for c in DYNAMIC_CHANNELS if c in measured.columns
-                and np.isfinite(np.asarray(measured[c], float)).mean() >= 0.5]
+def candidate_channels(rig):
+    """The channels a diagnosis may compare, from the rig: every body's position (x, y, z), the attitude
+    (roll, pitch, yaw) of every body whose markers can give one (three or more), every winch's rope length."""
+    channels = []
+    for name, body in rig.bodies.items():
+        quantities = ("x", "y", "z") + (("roll", "pitch", "yaw") if len(body.markers) >= 3 else ())
+        channels += [f"{name}.{q}" for q in quantities]
+    return channels + list(rope_channels(rig))
+
+
+def check_channels(measured, rig):
+    """The rig's candidate channels the recording measures (on at least ``MEASURED_SHARE`` of its samples).
+
+    Raises ValueError when it measures no body of the rig.
+    """
+    def measured_enough(c):
+        return c in measured.columns and np.isfinite(np.asarray(measured[c], float)).mean() >= MEASURED_SHARE
+
+    channels = [c for c in candidate_channels(rig) if measured_enough(c)]
+    if not any(c.partition(".")[0] in rig.bodies for c in channels):
+        raise ValueError(f"the recording measures none of the rig's bodies ({', '.join(rig.bodies)}) on most of "
+                         "its samples: not a recording of this rig")
     return channels
+
+
+def moving_channels(channels, nominal, noise):
+    """The channels the nominal model moves by more than the recording's noise on them.
+
+    A planar maneuver leaves the out-of-plane channels (a body's y, roll and
+    yaw) at rest in the model, to the last bits: there the recording holds
+    noise alone, and the diagnosis has nothing to compare.
+
+    Parameters
+    ----------
+    channels : list of str
+    nominal : ndarray (n, c)
+        The nominal model's channels.
+    noise : ndarray (c,)
+        The recording's noise on each.
+    """
+    spread = np.nanmax(nominal, axis=0) - np.nanmin(nominal, axis=0)
+    return [c for c, s, sigma in zip(channels, spread, noise) if s > sigma]
 
 
 def rope_bias_allowance(rig, nominal_table, sigmas=2.5):
@@ -173,7 +215,7 @@ def rope_bias_allowance(rig, nominal_table, sigmas=2.5):
     """
     out = {}
     first = nominal_table["time"] == float(nominal_table["time"].iloc[0])
-    for channel in ROPE_CHANNELS:
+    for channel in rope_channels(rig):
         rope = channel.split(".")[0]
         spec = rig.ropes.get(rope)
         reel_col = f"{rope}.reel_length"
@@ -205,7 +247,8 @@ def check_maneuver(measured, estimate, rig, bias_allowance=None):
         Channel -> further mean offset (m) the rig's tolerances allow
         (``rope_bias_allowance``).
     """
-    ropes = [c for c in ROPE_CHANNELS if c in measured.columns and np.isfinite(np.asarray(measured[c], float)).any()]
+    ropes = [c for c in rope_channels(rig) if c in measured.columns
+             and np.isfinite(np.asarray(measured[c], float)).any()]
     if not ropes:
         raise ValueError("the recording has no rope lengths; cannot check it against the maneuver table")
     travel = max(np.nanmax(np.asarray(measured[c], float)) - np.nanmin(np.asarray(measured[c], float)) for c in ropes)
@@ -245,7 +288,8 @@ def align_with_maneuver(measured, nominal_table, rig):
     measured: ring friction or inertia changes its length in ways that would
     pull the offset.
     """
-    ropes = [c for c in ROPE_CHANNELS if c in measured.columns and np.isfinite(np.asarray(measured[c], float)).any()]
+    ropes = [c for c in rope_channels(rig) if c in measured.columns
+             and np.isfinite(np.asarray(measured[c], float)).any()]
     free = [c for c in ropes if _rope_kind(rig, c) == "free"]
     use = free or ropes
     if use == ropes:

@@ -20,8 +20,6 @@ __all__ = ["write_report_pdf"]
 DEG = 180.0 / math.pi
 PLOT = {"position": (1.0, "m"), "angle": (DEG, "deg"), "rope_length": (1.0, "m")}
 RESID = {"position": (1000.0, "mm"), "angle": (DEG, "deg"), "rope_length": (1000.0, "mm")}
-OVERLAY_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch", "drag_cluster.x", "spreader_bar.pitch",
-                    "hoist_cluster.z", "hoist_rope.length", "drag_rope.length", "hoist_cluster.pitch")
 TEXT_SIZE = 7.0
 
 
@@ -132,7 +130,7 @@ def _overlay_pages(pdf, diag):
     doc = diag.doc
     best = doc["free_decay"]["fitted_model"]
     fitted = diag.fitted.get(best)
-    chans = [c for c in OVERLAY_CHANNELS if c in diag.channels]
+    chans = [c for c in diag.overlay_channels if c in diag.channels] or list(diag.channels)
     t = diag.time
     dt = float(t[1] - t[0])
     width = max(3, int(round(LOWPASS_S / dt)) | 1)

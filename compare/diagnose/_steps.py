@@ -29,7 +29,7 @@ from dataclasses import replace
 import numpy as np
 
 from ...simulate import make_mechanism, simulate
-from .._align import MAX_OFFSET, check_table, reels_stop_time
+from .._align import MAX_OFFSET, check_table, maneuver_stop_time, reels_stop_time
 from .._compare import channel_kind
 from ._band import RESOLVED_MIN, band_improvement
 from ._decide import decide, leftover_share, model_error_share
@@ -45,7 +45,14 @@ from ._hypotheses import (
     unavailable_reason,
 )
 from ._locate import LOWPASS_S, locate_mismatch, noise_level, time_windows
-from ._recording import MIN_DECAY_S, align_with_maneuver, check_channels, check_maneuver, rope_bias_allowance
+from ._recording import (
+    MIN_DECAY_S,
+    align_with_maneuver,
+    check_channels,
+    check_maneuver,
+    moving_channels,
+    rope_bias_allowance,
+)
 from ._second_round import second_round
 from ._state import NullTest, Recording
 from ._summary import significant_updates, stated_uncertainty, structure_energy
@@ -80,10 +87,10 @@ def _note(state, message):
 
 
 def align_recording(state):
-    """The nominal run, the recording on its clock, the channels' noise, the fitting problem."""
+    """The nominal run, the recording on its clock, the channels and their noise, the fitting problem."""
     measured, rig, maneuver = state.measured, state.rig, state.maneuver
     check_table(measured, "measured table")
-    channels = check_channels(measured)
+    channels = check_channels(measured, rig)
     t_meas = np.asarray(measured["time"], float)
     step = float(np.median(np.diff(t_meas)))
     if np.max(np.abs(np.diff(t_meas) - step)) > 0.01 * step:
@@ -96,23 +103,26 @@ def align_recording(state):
     _note(state, "simulating the nominal model")
     nominal_run = simulate(rig, maneuver, state.discretization, [], duration=record + MAX_OFFSET, rate_hz=rate)
     nominal_table = nominal_run.table
-    estimate = align_with_maneuver(measured, nominal_table, rig)
-    check_maneuver(measured, estimate, rig, rope_bias_allowance(rig, nominal_table))
-    offset = float(estimate["offset"])
+    offset, estimate, t_stop, stop_method = _clock(measured, nominal_table, rig, maneuver)
     t_al = t_meas - offset
     keep = (t_al >= t0 - 1e-9) & (t_al <= float(nominal_run.time[-1]) + 1e-9)
     time = t_al[keep]
     if time.size < 16:
         raise ValueError("the recording does not overlap the maneuver in time")
-    values = np.column_stack([np.asarray(measured[c], float)[keep] for c in channels])
-    t_stop, stop_method = reels_stop_time(measured, nominal_table, offset)
-    if t_stop is None:
-        raise ValueError("cannot tell when the reels stop; the free decay cannot be found")
     if time[-1] - t_stop < MIN_DECAY_S:
-        raise ValueError(f"the recording ends {max(time[-1] - t_stop, 0.0):.2f} s after the reels stop; a diagnosis "
-                         f"needs a free decay of at least {MIN_DECAY_S:g} s (more than one swing)")
-    duration = float(time[-1] - t0) + 1.0 / rate
+        raise ValueError(f"the recording ends {max(time[-1] - t_stop, 0.0):.2f} s after the maneuver stops; a "
+                         f"diagnosis needs a free decay of at least {MIN_DECAY_S:g} s (more than one swing)")
+    values = np.column_stack([np.asarray(measured[c], float)[keep] for c in channels])
     sigma = np.array([noise_level(values[:, j], channel_kind(c)) for j, c in enumerate(channels)])
+    nominal_sim = np.column_stack([np.interp(time, nominal_run.time, np.asarray(nominal_table[c], float))
+                                   for c in channels])
+    moving = moving_channels(channels, nominal_sim, sigma)
+    if len(moving) < len(channels):
+        # C order, as column_stack gives: a strided copy sums in another order (last-bit differences).
+        cols = [channels.index(c) for c in moving]
+        channels, values, sigma, nominal_sim = (moving, np.ascontiguousarray(values[:, cols]), sigma[cols],
+                                                np.ascontiguousarray(nominal_sim[:, cols]))
+    duration = float(time[-1] - t0) + 1.0 / rate
     dt = float(time[1] - time[0])
     recording = Recording(time=time, channels=channels, values=values, noise=sigma, rate_hz=rate, t_stop=t_stop,
                           stop_method=stop_method, offset=offset, alignment=estimate,
@@ -123,11 +133,33 @@ def align_recording(state):
            "nominal_dt": float(nominal_run.dt), "parameters": tuple(rig.tolerances),
            # The recording was reconstructed with this rig's geometry (``channels_on``).
            "reported_rig": rig}
-    nominal_sim = np.column_stack([np.interp(time, nominal_run.time, np.asarray(nominal_table[c], float))
-                                   for c in channels])
     problem = Problem(time, values, sigma, t_stop)
     return replace(state, recording=recording, nominal_run=nominal_run, nominal_sim=nominal_sim,
                    plain_problem=problem, nominal_ctx=ctx, problem=problem, ctx=ctx)
+
+
+def _clock(measured, nominal_table, rig, maneuver):
+    """The recording's clock offset (recording minus model, s), its estimate, and when the maneuver stops.
+
+    A rig with winches: the offset from the recorded rope lengths against
+    the model's, which must follow the maneuver (``check_maneuver``), the
+    stop from the winches. Without: the recording starts with the maneuver
+    (a release, or a point's measured track that starts the recording), and
+    the maneuver stops when its last point does.
+    """
+    t0 = float(maneuver.time[0])
+    if not rig.winches:
+        offset = float(np.asarray(measured["time"], float)[0]) - t0
+        estimate = {"offset": offset, "estimated": True, "ropes": {},
+                    "method": "the recording's first sample is the maneuver's start (the rig has no winch)"}
+        return offset, estimate, maneuver_stop_time(maneuver), "the maneuver table's last change (no winch)"
+    estimate = align_with_maneuver(measured, nominal_table, rig)
+    check_maneuver(measured, estimate, rig, rope_bias_allowance(rig, nominal_table))
+    offset = float(estimate["offset"])
+    t_stop, stop_method = reels_stop_time(measured, nominal_table, offset)
+    if t_stop is None:
+        raise ValueError("cannot tell when the reels stop; the free decay cannot be found")
+    return offset, estimate, t_stop, stop_method
 
 
 def locate_nominal(state):

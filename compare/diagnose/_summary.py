@@ -13,8 +13,6 @@ from ._locate import low_pass, structure_threshold
 
 FREE_DECAY_KEYS = ("frequency_hz", "damping_ratio", "amplitude", "shape", "confidence", "decay_rate",
                    "decrement_per_cycle", "quadratic_coefficient")
-DECAY_CHANNELS = ("bucket.x", "bucket.z", "bucket.pitch", "drag_cluster.x", "spreader_bar.pitch",
-                  "hoist_cluster.pitch")
 
 
 def decay_entry(time, values, t_stop):
@@ -27,9 +25,18 @@ def decay_entry(time, values, t_stop):
     return out
 
 
-def free_decay_section(time, channels, measured, nominal, fitted, fitted_name, t_stop, updated=None):
+def report_channels(rig, channels, key):
+    """The rig's own choice (its file's ``[report] key``) among ``channels``, else every body channel of them."""
+    chosen = rig.report.get(key)
+    if chosen:
+        return [c for c in chosen if c in channels]
+    return [c for c in channels if c.partition(".")[0] in rig.bodies]
+
+
+def free_decay_section(time, channels, measured, nominal, fitted, fitted_name, t_stop, updated=None,
+                       decay_channels=None):
     out = {"t_start": float(t_stop), "t_end": float(time[-1]), "fitted_model": fitted_name, "channels": {}}
-    for ch in DECAY_CHANNELS:
+    for ch in channels if decay_channels is None else decay_channels:
         if ch not in channels:
             continue
         j = channels.index(ch)

@@ -54,6 +54,8 @@ def rings(model, which):
     A ring's site name is its rope's ``ring_name`` in the rig file, else the
     name of the point it sits at (``boom_pulley`` for ``fixed.boom_pulley``).
     """
+    if not model.seg_ring:
+        raise ValueError("the rig has no ring or sheave for a pulley mechanism to act at")
     if which == "all":
         return list(model.seg_ring.values())
     sites = {}
@@ -78,7 +80,10 @@ def segments(model, which, default_kind):
         return list(range(len(model.seg_names)))
     if which in SELECTOR_KINDS:
         kinds = SELECTOR_KINDS[which]
-        return [s for s, n in enumerate(model.seg_names) if model.rig.ropes[n].kind in kinds]
+        found = [s for s, n in enumerate(model.seg_names) if model.rig.ropes[n].kind in kinds]
+        if not found:
+            raise ValueError(f"the rig has no rope of kind {' or '.join(kinds)} for a mechanism on {which} to act on")
+        return found
     if which in model.seg_names:
         return [model.seg_names.index(which)]
     raise ValueError(f"unknown segments {which!r} (ropes, chains, all, or a segment name)")
