@@ -12,7 +12,8 @@ import argparse
 import importlib
 import sys
 
-COMMANDS = ("run", "simulate", "synth", "calibrate", "reconstruct", "compare", "diagnose", "replay", "inspect", "bench")
+COMMANDS = ("run", "simulate", "synth", "calibrate", "reconstruct", "compare", "diagnose", "replay", "inspect", "rig",
+            "bench")
 
 
 class UsageError(ValueError):

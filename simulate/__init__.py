@@ -20,6 +20,7 @@ from ._markers import body_marker_positions, marker_names, marker_positions
 from ._maneuver import Maneuver, default_maneuver, maneuver_from_table, read_maneuver_csv, write_maneuver_csv
 from ._dig import dig_maneuver
 from ._model import Model, assemble
+from ._modes import Modes, linear_modes
 from ._physics import MECHANISMS, Mechanism, make_mechanism, mechanism_names, parse_physics
 from ._rig import BUILT_IN_RIGS, DISCRETIZATION_LEVELS, Rig, load_rig, rig_from_dict
 from ._simulate import SimulationError, SimulationResult, simulate

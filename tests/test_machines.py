@@ -301,3 +301,45 @@ def test_the_diagnosis_of_a_pendulum_with_nothing_hidden_is_none():
     rig, table = _pendulum_recording([], seed=6)
     doc = diagnose(table, rig=rig, discretization="low", candidates=["aero_drag", "rope_bending_damping"]).doc
     assert doc["verdict"] == "none", doc["reason"]
+
+
+def test_the_linearized_modes_of_the_pendulum_are_its_analytic_ones():
+    """The conservative model (springs Ks + Kv) linearized at rest: the swing (twice, in two planes)
+    and the ball's rocking about its eye are the two-degree-of-freedom pendulum's modes."""
+    from dragline.simulate import linear_modes, solve_statics
+
+    rig = load_rig("pendulum")
+    ball, wire = rig.bodies["ball"], rig.ropes["wire"]
+    M, a, inertia = ball.mass, -ball.points["eye"][2], ball.inertia[1, 1]
+    n = rig.particle_counts("baseline")["wire"]
+    l = wire.length * (1.0 + M * G / (wire.static_stiffness + wire.viscous_stiffness))
+    p = wire.weight_per_length / G * wire.length / n
+    s = np.arange(1, n + 1) / (n + 1)
+    mass = np.array([[M * l * l + p * np.sum(s**2) * l * l, M * l * a], [M * l * a, M * a * a + inertia]])
+    stiffness = np.diag([M * G * l + p * G * l * np.sum(s), M * G * a])
+    w, _ = _modes(mass, stiffness)
+    model = assemble(rig, Maneuver([0.0]), "baseline", dissipation=False)
+    modes = linear_modes(model, solve_statics(model).state, count=5)
+    f = modes.frequency_hz
+    assert f[0] < 1e-3  # the ball's spin about the wire: nothing resists it
+    np.testing.assert_allclose(f[1:3], w[0] / (2 * np.pi), rtol=1e-5)
+    np.testing.assert_allclose(f[3:5], w[1] / (2 * np.pi), rtol=1e-3)  # the string's bending enters here
+
+
+def test_dragline_rig_describes_a_machine_and_refuses_a_broken_file(tmp_path, capsys):
+    import json
+
+    out, figure = tmp_path / "rig.json", tmp_path / "rig.png"
+    assert main(["rig", str(DATA / "double_pendulum.toml"), "--json", str(out), "--figure", str(figure)]) == 0
+    doc = json.loads(out.read_text())
+    assert set(doc["bodies"]) == {"upper", "lower"} and doc["winches"] == {}
+    assert doc["ropes"]["lower_string"]["path"] == ["upper.bottom", "lower.top"]
+    assert doc["statics"]["bodies"]["lower"][2] == pytest.approx(-2.0 + 0.8 + 0.6, abs=2e-3)  # hanging straight
+    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    text = capsys.readouterr().out
+    assert "upper_string (cable): fixed.pivot -> upper.top" in text and "lowest modes (Hz)" in text
+    bad = tmp_path / "bad.toml"
+    bad.write_text((DATA / "double_pendulum.toml").read_text().replace("mass = 0.5", "mass = -0.5"))
+    assert main(["rig", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(bad) in err[0] and "bodies.lower.mass" in err[0]
