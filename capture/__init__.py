@@ -13,7 +13,9 @@
   (``read_trc``, ``write_trc``, ``is_trc``), any of them by extension
   (``read_marker_file``, ``MARKER_FILE_EXTENSIONS``) into one record
   (``MarkerFile``), and a trial cut between two of a file's labelled events
-  (``between_events``, ``event_frame``)
+  (``between_events``, ``event_frame``); tables of tracked rigid-body poses
+  read through a declared mapping (``read_tracked_table``,
+  ``load_tracked_mapping``: ``TrackedPoses``, ``TrackedMapping``)
 - helpers every stage uses: strict JSON (``json_text``, ``json_ready``,
   ``write_json``), schema messages (``describe_validation_error``,
   ``fields_markdown``, ``key_text``, ``short_repr``) and the column
@@ -51,3 +53,4 @@ from ._vicon_csv import ViconExport, ViconSection, marker_trajectories, read_vic
 from ._c3d import is_c3d, read_c3d, write_c3d
 from ._trc import is_trc, read_trc, write_trc
 from ._marker_file import MARKER_FILE_EXTENSIONS, MarkerFile, between_events, event_frame, read_marker_file
+from ._tracked import TrackedMapping, TrackedPoses, frame_rotation, load_tracked_mapping, read_tracked_table

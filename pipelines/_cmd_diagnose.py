@@ -37,7 +37,10 @@ def add_parser(sub):
     p.add_argument("--calibration", metavar="cameras.json",
                    help="camera calibration of a session (default: cameras.json in it, else calibrated from "
                         "its L-frame and wand takes)")
-    p.add_argument("--rig", metavar="FILE", help="rig TOML file (default: the built-in 1/16-scale rig)")
+    p.add_argument("--rig", metavar="NAME|FILE", help="a built-in machine or a rig TOML file (default: the dragline)")
+    p.add_argument("--mapping", metavar="MAPPING.toml",
+                   help="read INPUT as a table of tracked poses (a tracker's CSV export) mapped onto the rig's "
+                        "bodies and points by this file (docs/schemas.md)")
     p.add_argument("--discretization", default="baseline", metavar="LEVEL|ROPE=N,...",
                    help="discretization of every simulation (default baseline)")
     p.add_argument("--candidates", metavar="NAME,...",
@@ -57,8 +60,8 @@ def run(args):
     outputs = [p for p in (args.json, args.report) if p]
     for path in outputs:
         check_output_path(path)
-    guard_outputs([*session_inputs(args.input, extra=("cameras.json",)), args.maneuver, args.calibration, args.rig],
-                  files=outputs)
+    guard_outputs([*session_inputs(args.input, extra=("cameras.json",)), args.maneuver, args.calibration, args.rig,
+                   args.mapping], files=outputs)
     if args.workers < 1:
         raise ValueError("--workers must be at least 1")
     names = None
@@ -74,7 +77,7 @@ def run(args):
     t0 = time.perf_counter()
     result = diagnose_path(args.input, maneuver=args.maneuver, rig=rig, calibration=args.calibration,
                            discretization=discretization, candidates=names, workers=executor_from_args(args),
-                           seed=args.seed, progress=say, between=between)
+                           seed=args.seed, progress=say, between=between, mapping=args.mapping)
     write_diagnosis_json(args.json, result.doc)
     if args.report:
         write_diagnosis_report(args.report, result)

@@ -182,6 +182,7 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config, between=None):
 
     sim, rec = config["simulate"], config["reconstruct"]
     rig = load_rig(sim["rig"])
+    _check_run_rig(rig)
     if maneuver is None and sim["maneuver"] is not None:
         maneuver = dig_maneuver() if sim["maneuver"] == "dig" else read_maneuver_csv(sim["maneuver"])
     options = {"method": rec["method"], "smoothing": rec["smoothing"], "max_gap": int(rec["max_gap"])}
@@ -269,6 +270,20 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config, between=None):
           markers=markers, ropes=ropes, start_ns=start_ns)
     files["results"] = str(tmp / "results.mcap")
     return summary
+
+
+def _check_run_rig(rig):
+    """ValueError unless the rig has the built-in rig's bodies and winches: the synthetic lab's cameras
+    and the reconstruction's body frames still read them by name (``dragline simulate`` and
+    ``dragline diagnose`` of a trajectory table take any rig)."""
+    from dragline.simulate import load_rig
+
+    built_in = load_rig()
+    missing = [name for name in (*built_in.bodies, *built_in.winches) if name not in (*rig.bodies, *rig.winches)]
+    if missing:
+        raise ValueError(f"{rig.source}: dragline run needs the built-in dragline's bodies and winches (this rig "
+                         f"lacks {', '.join(missing)}); for another machine use dragline simulate, and dragline "
+                         "diagnose on a trajectory table")
 
 
 def _builtin_session(tmp, seed, rig):

@@ -203,11 +203,11 @@ def diagnosis_of(state):
 
 
 def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretization="baseline", candidates=None,
-                  workers=2, seed=0, progress=None, between=None):
+                  workers=2, seed=0, progress=None, between=None, mapping=None):
     """:func:`load_recording` then :func:`diagnose`: what ``dragline diagnose`` runs."""
     started = _time.perf_counter()
     rig = load_rig() if rig is None else rig
-    table, man, source = load_recording(path, maneuver, rig, calibration, progress, between)
+    table, man, source = load_recording(path, maneuver, rig, calibration, progress, between, mapping)
     loaded = _time.perf_counter() - started
     try:
         result = diagnose(table, man, rig, discretization, candidates, workers, seed, source, progress)

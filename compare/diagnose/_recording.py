@@ -58,7 +58,7 @@ def _session_maneuver(session, path):
     return maneuver_from_table(cols, f"{path} (session info)")
 
 
-def load_recording(path, maneuver=None, rig=None, calibration=None, progress=None, between=None):
+def load_recording(path, maneuver=None, rig=None, calibration=None, progress=None, between=None, mapping=None):
     """The measured trajectory table and the maneuver of a recording.
 
     Parameters
@@ -82,6 +82,10 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
     between : (str, str), optional
         A marker file's start and end event labels: the trial between them
         (``reconstruct_marker_file``); ``source["cut"]`` says what was kept.
+    mapping : path, optional
+        Read ``path`` as a table of tracked poses through this mapping
+        (``capture.read_tracked_table``); its tracked points' positions are
+        the maneuver when none is given.
 
     Returns
     -------
@@ -101,6 +105,8 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
     path = os.fspath(path)
     rig = load_rig() if rig is None else rig
     maneuver = _read_maneuver_arg(maneuver)
+    if mapping is not None:
+        return _load_tracked(path, mapping, rig, maneuver, note)
     source = {"input": path}
     recording = resolve_recording(path, tables=True)
     kind, file, folder = recording.kind, recording.file, recording.folder
@@ -139,6 +145,29 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
             source["maneuver"] = "the rig's own (default; no maneuver table came with the input)"
             note("no maneuver table came with the input; using the rig's own (checked against the rope lengths)")
     source.setdefault("maneuver", "given")
+    return table, maneuver, source
+
+
+def _load_tracked(path, mapping, rig, maneuver, note):
+    """A tracker's table of poses, through its mapping: the trajectory table, the maneuver, the source."""
+    from ...capture import read_tracked_table
+    from ...reconstruct import tracked_trajectory
+
+    poses = read_tracked_table(path, mapping)
+    try:
+        table, tracked = tracked_trajectory(poses, rig)
+    except ValueError as exc:
+        raise ValueError(f"{mapping}: {exc}") from None
+    source = {"input": path, "kind": "tracked table", "mapping": os.fspath(mapping), "tracked": poses.report}
+    report = poses.report
+    if report["rows_dropped"] or report["gaps"] or report["off_step"]:
+        note(f"{path}: {report['rows_dropped']} rows without a usable time dropped, {report['off_step']} intervals "
+             f"off the median step, {report['gaps']} gaps left missing")
+    if maneuver is None:
+        maneuver, source["maneuver"] = (tracked, "the tracked points' track") if tracked is not None else (
+            default_maneuver(rig), "the rig's own")
+    else:
+        source["maneuver"] = "given"
     return table, maneuver, source
 
 

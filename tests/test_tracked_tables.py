@@ -1,0 +1,139 @@
+"""Tables of tracked poses (a tracker's CSV export) read through a declared mapping.
+
+Truth is a simulation written out as a foreign lab would record it: y up,
+millimetres, milliseconds, quaternions w first, columns in its own names;
+read back through the mapping it must be the simulation again.
+"""
+
+import numpy as np
+import pytest
+from dragline.capture import frame_rotation, read_tracked_table
+from dragline.pipelines.cli import main
+from dragline.reconstruct import tracked_trajectory
+from dragline.simulate import body_to_inertial, load_rig, simulate
+from scipy.spatial.transform import Rotation
+
+MAPPING = """
+[table]
+time = "Time (ms)"
+time_unit = "ms"
+units = "mm"
+up = "+y"
+quaternion = "wxyz"
+
+[bodies.ball]
+position = ["Ball X", "Ball Y", "Ball Z"]
+quaternion = ["Ball QW", "Ball QX", "Ball QY", "Ball QZ"]
+"""
+
+
+@pytest.fixture(scope="module")
+def swing():
+    return simulate(load_rig("pendulum"), duration=4.0, rate_hz=100.0, discretization="low")
+
+
+def _foreign(table, up="+y"):
+    """The ball's pose as a y-up, millimetre, millisecond tracker with w-first quaternions records it."""
+    import pandas as pd
+
+    R = frame_rotation(up)
+    T = body_to_inertial(*(table[f"ball.{a}"].to_numpy() for a in ("roll", "pitch", "yaw")))
+    position = table[["ball.x", "ball.y", "ball.z"]].to_numpy() @ R  # R^T p, row-wise
+    q = Rotation.from_matrix(R.T @ T @ R).as_quat()  # x, y, z, w
+    return pd.DataFrame({"Frame": np.arange(len(table)), "Time (ms)": table["time"].to_numpy() * 1000.0,
+                         "Ball QW": q[:, 3], "Ball QX": q[:, 0], "Ball QY": q[:, 1], "Ball QZ": q[:, 2],
+                         "Ball X": position[:, 0] * 1000.0, "Ball Y": position[:, 1] * 1000.0,
+                         "Ball Z": position[:, 2] * 1000.0})
+
+
+@pytest.mark.parametrize("up", ["+x", "-x", "+y", "-y", "+z", "-z"])
+def test_every_up_axis_is_a_proper_rotation_putting_up_at_minus_k(up):
+    R = frame_rotation(up)
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-15)
+    assert np.linalg.det(R) == pytest.approx(1.0)
+    axis = np.zeros(3)
+    axis["xyz".index(up[1])] = 1.0 if up[0] == "+" else -1.0
+    np.testing.assert_allclose(R @ axis, [0.0, 0.0, -1.0], atol=1e-15)
+
+
+def test_a_foreign_trackers_table_reads_back_as_the_simulation(tmp_path, swing):
+    csv, mapping = tmp_path / "take.csv", tmp_path / "take.toml"
+    _foreign(swing.table).to_csv(csv, index=False, float_format="%.12g")
+    mapping.write_text(MAPPING)
+    poses = read_tracked_table(csv, mapping)
+    assert poses.report["rows_dropped"] == 0 and poses.report["gaps"] == 0
+    assert poses.report["rate_hz"] == pytest.approx(100.0)
+    table, maneuver = tracked_trajectory(poses, load_rig("pendulum"))
+    assert maneuver is None
+    np.testing.assert_allclose(table["time"], swing.table["time"] - swing.table["time"].iloc[0], atol=1e-9)
+    for channel, tol in (("ball.x", 1e-9), ("ball.y", 1e-9), ("ball.z", 1e-9), ("ball.pitch", 1e-9),
+                         ("ball.roll", 1e-9), ("ball.vx", 2e-3), ("ball.q", 2e-2)):
+        np.testing.assert_allclose(table[channel], swing.table[channel], atol=tol, err_msg=channel)
+
+
+def test_dropped_rows_shuffled_rows_and_a_gap_are_resampled_and_said(tmp_path, swing):
+    foreign = _foreign(swing.table)
+    foreign = foreign.drop(index=list(range(200, 206)))  # a dropout of six frames
+    foreign.loc[10, "Time (ms)"] = np.nan  # a row with no time
+    foreign = foreign.sample(frac=1.0, random_state=3)  # written out of order
+    csv, mapping = tmp_path / "take.csv", tmp_path / "take.toml"
+    foreign.to_csv(csv, index=False, float_format="%.12g")
+    mapping.write_text(MAPPING)
+    poses = read_tracked_table(csv, mapping)
+    assert poses.report["rows_dropped"] == 1 and poses.report["gaps"] == 1
+    table, _ = tracked_trajectory(poses, load_rig("pendulum"))
+    assert table["time"].size == len(swing.table)
+    inside = (table["time"] > 1.995) & (table["time"] < 2.055)  # rows 200-205: 2.00-2.05 s
+    assert table.loc[inside, "ball.x"].isna().all() and table.loc[~inside, "ball.x"].notna().all()
+    kept = ~inside.to_numpy()
+    np.testing.assert_allclose(table["ball.x"][kept], swing.table["ball.x"][kept], atol=2e-4)  # row 10: interpolated
+
+
+@pytest.mark.parametrize("edit, words", [
+    (('"Ball QW", "Ball QX"', '"Ball QW", "Ball Q"'), ["no column 'Ball Q'", "Time (ms)"]),
+    (('up = "+y"', 'up = "north"'), ["table.up", "'north'"]),
+    (('time = "Time (ms)"', 'rate_hz = 100.0\ntime = "Time (ms)"'), ["clock once"]),
+])
+def test_a_mapping_that_names_what_the_table_lacks_is_refused_in_one_line(tmp_path, swing, edit, words):
+    csv, mapping = tmp_path / "take.csv", tmp_path / "take.toml"
+    _foreign(swing.table).to_csv(csv, index=False)
+    mapping.write_text(MAPPING.replace(*edit))
+    with pytest.raises(ValueError) as info:
+        read_tracked_table(csv, mapping)
+    message = str(info.value)
+    assert "\n" not in message and (str(csv) in message or str(mapping) in message)
+    for word in words:
+        assert word in message, message
+
+
+def test_diagnose_reads_a_tracked_table_through_its_mapping(tmp_path, capsys):
+    """A foreign lab's free decay of the pendulum with air drag, diagnosed from its own export."""
+    import json
+
+    from dragline.simulate import parse_physics
+
+    run = simulate(load_rig("pendulum"), physics=[parse_physics("aero_drag:cd=3.0")], duration=16.0,
+                   rate_hz=100.0, discretization="low")
+    foreign = _foreign(run.table)
+    rng = np.random.default_rng(9)
+    for c in ("Ball X", "Ball Y", "Ball Z"):
+        foreign[c] += rng.normal(0.0, 0.5, len(foreign))  # 0.5 mm
+    csv, mapping, out = tmp_path / "take.csv", tmp_path / "take.toml", tmp_path / "d.json"
+    foreign.to_csv(csv, index=False, float_format="%.12g")
+    mapping.write_text(MAPPING)
+    assert main(["diagnose", str(csv), "--mapping", str(mapping), "--rig", "pendulum", "--discretization", "low",
+                 "--json", str(out), "--quiet"]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["verdict"] == "aero_drag", doc["reason"]
+    assert doc["source"]["kind"] == "tracked table" and doc["source"]["tracked"]["rate_hz"] == pytest.approx(100.0)
+
+
+def test_the_docs_list_the_mapping_schema_as_generated():
+    import re
+
+    from conftest import REPO
+    from dragline.capture._tracked import tracked_mapping_markdown
+
+    doc = (REPO / "docs" / "schemas.md").read_text()
+    block = re.search(r"<!-- generated: tracked mapping schema -->\n(.*?)<!-- end generated -->", doc, re.S).group(1)
+    assert block == tracked_mapping_markdown()
