@@ -14,7 +14,8 @@
   (``read_marker_file``, ``MARKER_FILE_EXTENSIONS``) into one record
   (``MarkerFile``), and a trial cut between two of a file's labelled events
   (``between_events``, ``event_frame``); tables of tracked rigid-body poses
-  read through a declared mapping (``read_tracked_table``,
+  read through a declared mapping (``read_tracked_table``, and a ROS 2
+  bag's pose topics ``read_tracked_bag``,
   ``load_tracked_mapping``: ``TrackedPoses``, ``TrackedMapping``)
 - helpers every stage uses: strict JSON (``json_text``, ``json_ready``,
   ``write_json``), schema messages (``describe_validation_error``,
@@ -53,4 +54,11 @@ from ._vicon_csv import ViconExport, ViconSection, marker_trajectories, read_vic
 from ._c3d import is_c3d, read_c3d, write_c3d
 from ._trc import is_trc, read_trc, write_trc
 from ._marker_file import MARKER_FILE_EXTENSIONS, MarkerFile, between_events, event_frame, read_marker_file
-from ._tracked import TrackedMapping, TrackedPoses, frame_rotation, load_tracked_mapping, read_tracked_table
+from ._tracked import (
+    TrackedMapping,
+    TrackedPoses,
+    frame_rotation,
+    load_tracked_mapping,
+    read_tracked_bag,
+    read_tracked_table,
+)

@@ -29,8 +29,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from ._schema_tools import describe_validation_error, fields_markdown
 
-__all__ = ["TrackedPoses", "TrackedMapping", "read_tracked_table", "load_tracked_mapping", "frame_rotation",
-           "tracked_mapping_markdown"]
+__all__ = ["TrackedPoses", "TrackedMapping", "read_tracked_table", "read_tracked_bag", "load_tracked_mapping",
+           "frame_rotation", "tracked_mapping_markdown"]
 
 _UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2}
 _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
@@ -48,15 +48,34 @@ class _Strict(BaseModel):
 class TrackedBody(_Strict):
     """A rig body's tracked pose: its reference point's position, and its attitude when tracked."""
 
-    position: list[_Column] = Field(min_length=3, max_length=3, description="x, y, z columns (names or numbers)")
+    position: Optional[list[_Column]] = Field(None, min_length=3, max_length=3,
+                                              description="x, y, z columns (names or numbers), in a table")
     quaternion: Optional[list[_Column]] = Field(None, min_length=4, max_length=4,
                                                 description="attitude columns, in the table's `quaternion` order")
+    topic: Optional[Annotated[str, Field(min_length=1)]] = Field(
+        None, description="in a ROS 2 bag: its PoseStamped or TransformStamped topic (position and attitude)")
+
+    @model_validator(mode="after")
+    def _source(self):
+        if (self.position is None) == (self.topic is None):
+            raise ValueError("give a tracked pose's source once: `position` columns (a table) or a `topic` (a bag)")
+        if self.topic is not None and self.quaternion is not None:
+            raise ValueError("a topic carries its own attitude: no `quaternion` columns with a `topic`")
+        return self
 
 
 class TrackedPoint(_Strict):
     """A rig point the recording moves (a drone's hook, a trolley): its track is the maneuver's."""
 
-    position: list[_Column] = Field(min_length=3, max_length=3, description="x, y, z columns (names or numbers)")
+    position: Optional[list[_Column]] = Field(None, min_length=3, max_length=3,
+                                              description="x, y, z columns (names or numbers), in a table")
+    topic: Optional[Annotated[str, Field(min_length=1)]] = Field(None, description="in a ROS 2 bag: its topic")
+
+    @model_validator(mode="after")
+    def _source(self):
+        if (self.position is None) == (self.topic is None):
+            raise ValueError("give a tracked point's source once: `position` columns (a table) or a `topic` (a bag)")
+        return self
 
 
 class TrackedTable(_Strict):
@@ -70,12 +89,8 @@ class TrackedTable(_Strict):
     units: Literal["m", "cm", "mm"] = Field("m", description="unit of every position")
     up: Literal["+x", "-x", "+y", "-y", "+z", "-z"] = Field("+z", description="the recording's axis that points up")
     quaternion: Literal["xyzw", "wxyz"] = Field("xyzw", description="the order of every quaternion's columns")
-
-    @model_validator(mode="after")
-    def _clock(self):
-        if (self.time is None) == (self.rate_hz is None):
-            raise ValueError("give the table's clock once: a `time` column or a `rate_hz`")
-        return self
+    stamp: Literal["header", "log"] = Field("header", description="in a bag: each message's header stamp, or the "
+                                                                 "time the recorder logged it")
 
 
 class TrackedMapping(_Strict):
@@ -153,10 +168,10 @@ def load_tracked_mapping(path):
 def _columns(frame, mapping, path):
     """Every column the mapping names, as float arrays, by the mapping's own keys."""
     wanted = [mapping.table.time] if mapping.table.time is not None else []
-    for body in mapping.bodies.values():
-        wanted += list(body.position) + list(body.quaternion or ())
-    for point in mapping.points.values():
-        wanted += list(point.position)
+    for entry in (*mapping.bodies.values(), *mapping.points.values()):
+        if entry.position is None:
+            raise ValueError(f"{path}: a table's mapping gives `position` columns; `topic` is for a ROS 2 bag")
+        wanted += list(entry.position) + list(getattr(entry, "quaternion", None) or ())
     out = {}
     for key in wanted:
         if isinstance(key, int):
@@ -180,24 +195,13 @@ def _columns(frame, mapping, path):
     return out
 
 
-def _clock(columns, mapping, n, path):
-    """Raw sample times (s) from the time column or the rate, and the rows whose time is usable."""
-    if mapping.table.time is None:
-        return np.arange(n) / mapping.table.rate_hz
-    t = columns[mapping.table.time] * _TIME_UNITS[mapping.table.time_unit]
-    if not np.isfinite(t).any():
-        raise ValueError(f"{path}: the time column {mapping.table.time!r} holds no number")
-    return t
-
-
 def read_tracked_table(path, mapping):
-    """Read a tracked-pose table through ``mapping`` (a ``TrackedMapping`` or its TOML path).
+    """Read a tracked-pose table (CSV) through ``mapping`` (a ``TrackedMapping`` or its TOML path).
 
-    Rows are put in time order; rows with no time, or a time already seen,
-    are dropped; the rest are resampled to a uniform clock at the median
-    step (linear for positions, normalized linear blend for quaternions),
-    leaving NaN across any gap of more than three steps. The report says
-    how many rows were dropped and how far the timestamps strayed.
+    Every track is put in time order; rows with no time, or a time already
+    seen, are dropped; the rest are resampled to a uniform clock at the
+    median step (``_resampled``). The report says how many rows were dropped
+    and how far the timestamps strayed.
 
     Raises
     ------
@@ -207,6 +211,8 @@ def read_tracked_table(path, mapping):
     """
     if not isinstance(mapping, TrackedMapping):
         mapping = load_tracked_mapping(mapping)
+    if (mapping.table.time is None) == (mapping.table.rate_hz is None):
+        raise ValueError(f"{path}: give the table's clock once in the mapping: a `time` column or a `rate_hz`")
     try:
         frame = pd.read_csv(path, header=0 if mapping.table.header else None, low_memory=False,
                             nrows=MAX_ROWS + 1)
@@ -219,57 +225,137 @@ def read_tracked_table(path, mapping):
     if mapping.table.header:
         frame.columns = [str(c).strip() for c in frame.columns]
     columns = _columns(frame, mapping, path)
-    t_raw = _clock(columns, mapping, len(frame), path)
-    usable = np.isfinite(t_raw)
-    order = np.argsort(t_raw[usable], kind="stable")
-    rows = np.flatnonzero(usable)[order]
-    t_sorted = t_raw[rows]
-    first = np.r_[True, np.diff(t_sorted) > 0]
-    rows, t_sorted = rows[first], t_sorted[first]
-    if rows.size < 4:
-        raise ValueError(f"tracked table {path} has {rows.size} rows with a usable time; a recording needs more")
-    step = float(np.median(np.diff(t_sorted)))
-    time = np.arange(int(np.floor((t_sorted[-1] - t_sorted[0]) / step + 1e-9)) + 1) * step
-    rel = t_sorted - t_sorted[0]
-    gaps = np.diff(rel) > 3.5 * step
-    report = {"rows": int(len(frame)), "rows_used": int(rows.size), "rows_dropped": int(len(frame) - rows.size),
-              "rate_hz": 1.0 / step, "samples": int(time.size),
-              "off_step": int(np.count_nonzero(np.abs(np.diff(rel) - step) > JITTER * step)),
-              "gaps": int(np.count_nonzero(gaps)), "start_time_s": float(t_sorted[0])}
+    if mapping.table.time is None:
+        t = np.arange(len(frame)) / mapping.table.rate_hz
+    else:
+        t = columns[mapping.table.time] * _TIME_UNITS[mapping.table.time_unit]
+
+    def track(entry):
+        quaternion = getattr(entry, "quaternion", None)
+        q = None if quaternion is None else np.column_stack([columns[k] for k in quaternion])
+        if q is not None and mapping.table.quaternion == "wxyz":
+            q = q[:, [1, 2, 3, 0]]
+        return t, np.column_stack([columns[k] for k in entry.position]), q
+
+    return _resampled(path, mapping, {name: track(b) for name, b in mapping.bodies.items()},
+                      {name: track(p) for name, p in mapping.points.items()}, rows=len(frame))
+
+
+def read_tracked_bag(path, mapping):
+    """Read the pose topics of a ROS 2 bag (MCAP, CDR) through ``mapping``.
+
+    Each body or point names a ``geometry_msgs`` ``PoseStamped`` or
+    ``TransformStamped`` topic (as the VICON and OptiTrack ROS bridges
+    publish); messages are decoded by ``mcap-ros2-support`` from the bag's
+    own message definitions. Time is each message's header stamp (or the
+    recorder's log time, ``table.stamp = "log"``). Every track is then
+    resampled to one uniform clock (``_resampled``).
+    """
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    if not isinstance(mapping, TrackedMapping):
+        mapping = load_tracked_mapping(mapping)
+    entries = {**{("body", n): b for n, b in mapping.bodies.items()}, **{("point", n): p for n, p in mapping.points.items()}}
+    for (_, name), entry in entries.items():
+        if entry.topic is None:
+            raise ValueError(f"{path}: a bag's mapping gives each body and point a `topic` ({name!r} has columns)")
+    samples = {key: [] for key in entries}
+    by_topic = {}
+    for key, entry in entries.items():
+        by_topic.setdefault(entry.topic, []).append(key)
+    try:
+        with open(path, "rb") as stream:
+            reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+            for _, channel, message, ros in reader.iter_decoded_messages(topics=list(by_topic)):
+                stamp = message.log_time  # integer ns: seconds since 1970 in a float lose 0.2 us
+                if mapping.table.stamp == "header":
+                    stamp = int(ros.header.stamp.sec) * 10**9 + int(ros.header.stamp.nanosec)
+                pose = getattr(ros, "pose", None)
+                if pose is not None:
+                    p, q = pose.position, pose.orientation
+                else:
+                    p, q = ros.transform.translation, ros.transform.rotation
+                row = (stamp, p.x, p.y, p.z, q.x, q.y, q.z, q.w)
+                for key in by_topic[channel.topic]:
+                    samples[key].append(row)
+    except FileNotFoundError:
+        raise ValueError(f"bag {path} does not exist") from None
+    except (McapError, OSError, AttributeError, ValueError, EOFError) as exc:
+        raise ValueError(f"bag {path} cannot be read as ROS 2 poses: {' '.join(str(exc).split()) or type(exc).__name__}") from None
+    tracks = {}
+    for key, rows in samples.items():
+        if not rows:
+            raise ValueError(f"bag {path} has no message on topic {entries[key].topic!r} ({key[0]} {key[1]!r})")
+    origin = min(row[0] for rows in samples.values() for row in rows)
+    for key, rows in samples.items():
+        t = np.array([(row[0] - origin) * 1e-9 for row in rows])
+        a = np.array([row[1:] for row in rows], float)
+        tracks[key] = (t, a[:, 0:3], a[:, 3:7] if key[0] == "body" else None)
+    return _resampled(path, mapping, {n: v for (kind, n), v in tracks.items() if kind == "body"},
+                      {n: v for (kind, n), v in tracks.items() if kind == "point"},
+                      rows=sum(len(r) for r in samples.values()))
+
+
+def _resampled(path, mapping, bodies, points, rows):
+    """Tracks (name -> (time s, xyz, quaternion xyzw or None)) on one uniform clock, in the tool's frame.
+
+    The clock runs at the first body's median step over the time every
+    track covers. A track's rows without a time, or repeating one, are
+    dropped; across a gap of more than 3.5 steps nothing is made up.
+    """
+    cleaned, dropped = {}, 0
+    for key, (t, xyz, q) in {**{("body", n): v for n, v in bodies.items()},
+                             **{("point", n): v for n, v in points.items()}}.items():
+        usable = np.flatnonzero(np.isfinite(t))
+        order = usable[np.argsort(t[usable], kind="stable")]
+        keep = order[np.r_[True, np.diff(t[order]) > 0]]
+        dropped += t.size - keep.size
+        if keep.size < 4:
+            raise ValueError(f"{path}: {key[0]} {key[1]!r} has {keep.size} samples with a usable time; a recording "
+                             "needs more")
+        cleaned[key] = (t[keep], xyz[keep], None if q is None else q[keep])
+    first = next(iter(cleaned.values()))[0]
+    step = float(np.median(np.diff(first)))
+    start = max(v[0][0] for v in cleaned.values())
+    end = min(v[0][-1] for v in cleaned.values())
+    if not end - start > 3 * step:
+        raise ValueError(f"{path}: the tracks do not overlap in time")
+    time = start + np.arange(int(np.floor((end - start) / step + 1e-9)) + 1) * step
     R = frame_rotation(mapping.table.up)
     scale = _UNITS[mapping.table.units]
+    gaps = off_step = 0
+    out = {"body": {}, "point": {}, "rotation": {}}
+    for (kind, name), (t, xyz, q) in cleaned.items():
+        intervals = np.diff(t)
+        off_step += int(np.count_nonzero(np.abs(intervals - step) > JITTER * step))
+        holes = np.flatnonzero(intervals > 3.5 * step)
+        gaps += holes.size
+        margin = JITTER * step  # a sample at a kept row's own time is data, whatever its rounding
+        missing = np.zeros(time.size, bool)
+        for k in holes:
+            missing |= (time > t[k] + margin) & (time < t[k + 1] - margin)
 
-    def resample(values):
-        out = np.interp(time, rel, values)
-        if gaps.any():  # nothing is made up across a dropout
-            for k in np.flatnonzero(gaps):
-                margin = JITTER * step  # a sample at a kept row's own time is data, whatever its rounding
-                out[(time > rel[k] + margin) & (time < rel[k + 1] - margin)] = np.nan
-        return out
+        def resample(values, t=t, missing=missing):
+            values = np.interp(time, t, values)
+            values[missing] = np.nan
+            return values
 
-    def track(keys):
-        xyz = np.column_stack([resample(columns[k][rows]) for k in keys]) * scale
-        return xyz @ R.T
-
-    positions = {name: track(body.position) for name, body in mapping.bodies.items()}
-    rotations = {}
-    for name, body in mapping.bodies.items():
-        if body.quaternion is None:
-            continue
-        q = np.column_stack([columns[k][rows] for k in body.quaternion])
-        if mapping.table.quaternion == "wxyz":
-            q = q[:, [1, 2, 3, 0]]
-        rotations[name] = R @ _quaternion_matrices(_resample_quaternions(q, rel, time, resample)) @ R.T
-    points = {name: track(point.position) for name, point in mapping.points.items()}
-    return TrackedPoses(time=time, positions=positions, rotations=rotations, points=points, report=report)
+        out[kind][name] = np.column_stack([resample(xyz[:, k]) for k in range(3)]) * scale @ R.T
+        if q is not None:
+            out["rotation"][name] = R @ _quaternion_matrices(_resample_quaternions(q, resample)) @ R.T
+    report = {"rows": int(rows), "rows_dropped": int(dropped), "rate_hz": 1.0 / step, "samples": int(time.size),
+              "off_step": off_step, "gaps": gaps, "start_time_s": float(start)}
+    return TrackedPoses(time=time - start, positions=out["body"], rotations=out["rotation"], points=out["point"],
+                        report=report)
 
 
-def _resample_quaternions(q, rel, time, resample):
+def _resample_quaternions(q, resample):
     """Quaternions (x, y, z, w) on the uniform clock: signs made continuous, each component interpolated, renormalized."""
     q = np.array(q, float)
-    for k in range(1, len(q)):
-        if np.all(np.isfinite(q[k])) and np.all(np.isfinite(q[k - 1])) and np.dot(q[k], q[k - 1]) < 0:
-            q[k:] *= -1.0
+    dots = np.einsum("ij,ij->i", q[1:], q[:-1])
+    q = q * np.r_[1.0, np.cumprod(np.where(dots < 0, -1.0, 1.0))][:, None]  # q and -q are one attitude
     out = np.column_stack([resample(q[:, k]) for k in range(4)])
     norm = np.linalg.norm(out, axis=1, keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):

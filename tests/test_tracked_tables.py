@@ -137,3 +137,126 @@ def test_the_docs_list_the_mapping_schema_as_generated():
     doc = (REPO / "docs" / "schemas.md").read_text()
     block = re.search(r"<!-- generated: tracked mapping schema -->\n(.*?)<!-- end generated -->", doc, re.S).group(1)
     assert block == tracked_mapping_markdown()
+
+
+# The official ROS 2 definitions (common_interfaces, rcl_interfaces), in the
+# concatenated form a recorder stores in a bag's schema records.
+_SEP = "=" * 80
+_POSE_DEPS = f"""{_SEP}
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+{_SEP}
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+"""
+POSE_STAMPED = f"""std_msgs/Header header
+geometry_msgs/Pose pose
+{_POSE_DEPS}{_SEP}
+MSG: geometry_msgs/Pose
+Point position
+Quaternion orientation
+{_SEP}
+MSG: geometry_msgs/Point
+float64 x
+float64 y
+float64 z
+{_SEP}
+MSG: geometry_msgs/Quaternion
+float64 x 0
+float64 y 0
+float64 z 0
+float64 w 1
+"""
+TRANSFORM_STAMPED = f"""std_msgs/Header header
+string child_frame_id
+Transform transform
+{_POSE_DEPS}{_SEP}
+MSG: geometry_msgs/Transform
+Vector3 translation
+Quaternion rotation
+{_SEP}
+MSG: geometry_msgs/Vector3
+float64 x
+float64 y
+float64 z
+{_SEP}
+MSG: geometry_msgs/Quaternion
+float64 x 0
+float64 y 0
+float64 z 0
+float64 w 1
+"""
+
+
+def _write_bag(path, table, start_ns=1_777_983_827_312_483_916, drop=()):
+    """The ball's pose as a z-up (ROS, ENU) mocap bridge publishes it: PoseStamped on one topic, the
+    pivot as TransformStamped on another, header stamps on the recording's clock."""
+    from mcap_ros2.writer import Writer
+
+    R = frame_rotation("+z")
+    T = body_to_inertial(*(table[f"ball.{a}"].to_numpy() for a in ("roll", "pitch", "yaw")))
+    position = table[["ball.x", "ball.y", "ball.z"]].to_numpy() @ R
+    q = Rotation.from_matrix(R.T @ T @ R).as_quat()
+    pivot = np.array([0.0, 0.0, -2.0]) @ R
+    with open(path, "wb") as stream:
+        writer = Writer(stream)
+        pose_schema = writer.register_msgdef("geometry_msgs/msg/PoseStamped", POSE_STAMPED)
+        tf_schema = writer.register_msgdef("geometry_msgs/msg/TransformStamped", TRANSFORM_STAMPED)
+        for k, t in enumerate(table["time"].to_numpy()):
+            ns = start_ns + int(round(t * 1e9))
+            stamp = {"sec": ns // 10**9, "nanosec": ns % 10**9}
+            if k not in drop:
+                writer.write_message("/vrpn_mocap/ball/pose", pose_schema, {
+                    "header": {"stamp": stamp, "frame_id": "world"},
+                    "pose": {"position": dict(zip("xyz", position[k])), "orientation": dict(zip("xyzw", q[k]))}},
+                    log_time=ns + 3_000_000, publish_time=ns)
+            writer.write_message("/vrpn_mocap/pivot/transform", tf_schema, {
+                "header": {"stamp": stamp, "frame_id": "world"}, "child_frame_id": "pivot",
+                "transform": {"translation": dict(zip("xyz", pivot)), "rotation": {"x": 0.0, "y": 0.0, "z": 0.0,
+                                                                                   "w": 1.0}}},
+                log_time=ns + 3_000_000, publish_time=ns)
+        writer.finish()
+
+
+BAG_MAPPING = """
+[table]
+up = "+z"
+
+[bodies.ball]
+topic = "/vrpn_mocap/ball/pose"
+
+[points.pivot]
+topic = "/vrpn_mocap/pivot/transform"
+"""
+
+
+def test_a_ros2_bag_of_pose_topics_reads_back_as_the_simulation(tmp_path, swing):
+    from dragline.capture import read_tracked_bag
+
+    bag, mapping = tmp_path / "take.mcap", tmp_path / "take.toml"
+    _write_bag(bag, swing.table, drop=range(150, 156))
+    mapping.write_text(BAG_MAPPING)
+    poses = read_tracked_bag(bag, mapping)
+    assert poses.report["gaps"] == 1 and poses.report["rate_hz"] == pytest.approx(100.0)
+    table, maneuver = tracked_trajectory(poses, load_rig("pendulum"))
+    np.testing.assert_allclose(maneuver.points["pivot"], np.tile([0.0, 0.0, -2.0], (table["time"].size, 1)),
+                               atol=1e-12)
+    kept = table["ball.x"].notna().to_numpy()
+    assert (~kept).sum() == 6
+    for channel in ("ball.x", "ball.y", "ball.z", "ball.pitch"):
+        np.testing.assert_allclose(table[channel][kept], swing.table[channel][kept], atol=1e-9, err_msg=channel)
+
+
+def test_a_bag_without_the_mapped_topic_is_refused_naming_it(tmp_path, swing):
+    from dragline.capture import read_tracked_bag
+
+    bag, mapping = tmp_path / "take.mcap", tmp_path / "take.toml"
+    _write_bag(bag, swing.table)
+    mapping.write_text(BAG_MAPPING.replace("/vrpn_mocap/ball/pose", "/vrpn_mocap/load/pose"))
+    with pytest.raises(ValueError, match="no message on topic '/vrpn_mocap/load/pose'"):
+        read_tracked_bag(bag, mapping)
+    bag.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 40)
+    with pytest.raises(ValueError, match="cannot be read as ROS 2 poses"):
+        read_tracked_bag(bag, mapping)

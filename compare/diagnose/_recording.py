@@ -83,9 +83,10 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
         A marker file's start and end event labels: the trial between them
         (``reconstruct_marker_file``); ``source["cut"]`` says what was kept.
     mapping : path, optional
-        Read ``path`` as a table of tracked poses through this mapping
-        (``capture.read_tracked_table``); its tracked points' positions are
-        the maneuver when none is given.
+        Read ``path`` as a table of tracked poses (a ``.mcap`` as a ROS 2
+        bag of pose topics) through this mapping (``capture.read_tracked_table``,
+        ``read_tracked_bag``); its tracked points' positions are the
+        maneuver when none is given.
 
     Returns
     -------
@@ -150,15 +151,17 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
 
 def _load_tracked(path, mapping, rig, maneuver, note):
     """A tracker's table of poses, through its mapping: the trajectory table, the maneuver, the source."""
-    from ...capture import read_tracked_table
+    from ...capture import read_tracked_bag, read_tracked_table
     from ...reconstruct import tracked_trajectory
 
-    poses = read_tracked_table(path, mapping)
+    bag = str(path).lower().endswith(".mcap")
+    poses = (read_tracked_bag if bag else read_tracked_table)(path, mapping)
     try:
         table, tracked = tracked_trajectory(poses, rig)
     except ValueError as exc:
         raise ValueError(f"{mapping}: {exc}") from None
-    source = {"input": path, "kind": "tracked table", "mapping": os.fspath(mapping), "tracked": poses.report}
+    source = {"input": path, "kind": "ROS 2 bag" if bag else "tracked table", "mapping": os.fspath(mapping),
+              "tracked": poses.report}
     report = poses.report
     if report["rows_dropped"] or report["gaps"] or report["off_step"]:
         note(f"{path}: {report['rows_dropped']} rows without a usable time dropped, {report['off_step']} intervals "
