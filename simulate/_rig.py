@@ -114,9 +114,10 @@ class Rig:
     """A whole rig: ``bodies``, ``ropes`` and ``winches`` in the file's order.
 
     ``winches`` maps each winch to the rope it pays out, in the order the
-    file declares them (a rope's ``winch``); ``maneuver`` names the rig's
-    own maneuver (a CSV path, resolved against the file's folder, or a
-    built-in generator's name), None for the dig maneuver.
+    file declares them (its ``[winches]`` table, after any rope's older
+    ``reel`` key); ``maneuver`` names the rig's own maneuver (a CSV path,
+    resolved against the file's folder, or a built-in generator's name;
+    None: the dig).
     """
 
     name: str

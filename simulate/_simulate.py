@@ -281,7 +281,7 @@ def simulate(
     integrator="verlet",
     release=None,
 ):
-    """Simulate a maneuver from static equilibrium.
+    """Simulate a maneuver from static equilibrium, or from a release.
 
     Parameters
     ----------
