@@ -151,6 +151,13 @@ MSG: builtin_interfaces/Time
 int32 sec
 uint32 nanosec
 """
+_QUATERNION = f"""{_SEP}
+MSG: geometry_msgs/Quaternion
+float64 x 0
+float64 y 0
+float64 z 0
+float64 w 1
+"""
 POSE_STAMPED = f"""std_msgs/Header header
 geometry_msgs/Pose pose
 {_POSE_DEPS}{_SEP}
@@ -162,13 +169,7 @@ MSG: geometry_msgs/Point
 float64 x
 float64 y
 float64 z
-{_SEP}
-MSG: geometry_msgs/Quaternion
-float64 x 0
-float64 y 0
-float64 z 0
-float64 w 1
-"""
+{_QUATERNION}"""
 TRANSFORM_STAMPED = f"""std_msgs/Header header
 string child_frame_id
 Transform transform
@@ -181,13 +182,7 @@ MSG: geometry_msgs/Vector3
 float64 x
 float64 y
 float64 z
-{_SEP}
-MSG: geometry_msgs/Quaternion
-float64 x 0
-float64 y 0
-float64 z 0
-float64 w 1
-"""
+{_QUATERNION}"""
 
 
 def _write_bag(path, table, start_ns=1_777_983_827_312_483_916, drop=()):
