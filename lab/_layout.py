@@ -129,6 +129,10 @@ def default_lab_cameras(seed=None):
     return cameras
 
 
+# The L-frame's four markers about its corner (m): two on the long arm along +I, one on the short arm along +J.
+LFRAME_ARMS = np.array([[0.0, 0.0, 0.0], [0.30, 0.0, 0.0], [0.70, 0.0, 0.0], [0.0, 0.40, 0.0]])
+
+
 def lframe_points():
     """Inertial positions (m) of the four L-frame markers, shape (4, 3).
 
@@ -141,15 +145,14 @@ def lframe_points():
     detections in the L-frame take.
     """
     corner = np.array([-3.0, -0.2, 0.0])
-    arms = np.array([[0.0, 0.0, 0.0], [0.30, 0.0, 0.0], [0.70, 0.0, 0.0], [0.0, 0.40, 0.0]])
-    return corner + arms
+    return corner + LFRAME_ARMS
 
 
-def wand_motion(n_frames, rng, rate_hz=200.0, wand_length=WAND_LENGTH):
+def wand_motion(n_frames, rng, rate_hz=200.0, wand_length=WAND_LENGTH, volume=WAND_VOLUME):
     """A wand waved smoothly through the capture volume.
 
     The wand's centre follows an incommensurate Lissajous path through
-    ``WAND_VOLUME`` (periods of a few seconds, like a person walking the
+    ``volume`` (``WAND_VOLUME`` by default; periods of a few seconds, like a person walking the
     wand through the lab) with small smooth wobbles; its direction sweeps
     all azimuths and elevations up to about 65 deg, so the calibration sees
     every orientation. Markers never go below the floor.
@@ -164,6 +167,8 @@ def wand_motion(n_frames, rng, rate_hz=200.0, wand_length=WAND_LENGTH):
         spreads fewer frames over the same path.
     wand_length : float
         Marker separation (m).
+    volume : ndarray (3, 2)
+        The box (m, rows x, y, z as [min, max]) the markers stay in.
 
     Returns
     -------
@@ -172,7 +177,8 @@ def wand_motion(n_frames, rng, rate_hz=200.0, wand_length=WAND_LENGTH):
     """
     t = np.arange(int(n_frames)) / float(rate_hz)
     half = wand_length / 2
-    lo, hi = WAND_VOLUME[:, 0], WAND_VOLUME[:, 1]
+    volume = np.asarray(volume, float)
+    lo, hi = volume[:, 0], volume[:, 1]
     # The centre stays a half-wand inside the box so that both markers do.
     c_lo = lo + np.array([half, half, half])
     c_hi = hi - np.array([half, half, half])

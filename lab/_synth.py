@@ -44,7 +44,7 @@ import numpy as np
 
 from ..capture import CaptureSession, camera_centre, project_points, save_cameras, write_json, write_vicon_csv
 from ..simulate import body_to_inertial, marker_positions, write_trajectory_csv
-from ._layout import NOMINAL_FOCAL_PX, WAND_LENGTH, lframe_points, wand_motion
+from ._layout import NOMINAL_FOCAL_PX, WAND_LENGTH, WAND_VOLUME, lframe_points, wand_motion
 
 __all__ = [
     "DEFAULTS",
@@ -375,7 +375,8 @@ def synthesize_session(result, cameras, seed=0, noise_px=DEFAULTS["noise_px"], d
                        ghost_rate=DEFAULTS["ghost_rate"], wand_ghost_rate=DEFAULTS["wand_ghost_rate"],
                        occlusion=DEFAULTS["occlusion"],
                        wand_frames=DEFAULTS["wand_frames"], wand_rate_hz=DEFAULTS["wand_rate_hz"],
-                       lframe_frames=DEFAULTS["lframe_frames"], metadata=None, recorded_ns=None):
+                       lframe_frames=DEFAULTS["lframe_frames"], metadata=None, recorded_ns=None,
+                       wand_volume=WAND_VOLUME, lframe=None, wand_length=WAND_LENGTH):
     """Film a simulation: the calibration takes and the trial's 2D centroids.
 
     Parameters
@@ -407,6 +408,11 @@ def synthesize_session(result, cameras, seed=0, noise_px=DEFAULTS["noise_px"], d
     recorded_ns : int, optional
         When the trial's first frame counts as recorded (ns since the Unix
         epoch); None leaves the session undated (and its files seed-exact).
+    wand_volume, lframe, wand_length
+        Where the wand is waved (m, rows x, y, z as [min, max]), the
+        L-frame's four markers (m, (4, 3); ``lframe_points()`` by default)
+        and the wand's length (m): the built-in lab's by default, a
+        ``LabLayout``'s for another machine.
 
     Returns
     -------
@@ -450,10 +456,11 @@ def synthesize_session(result, cameras, seed=0, noise_px=DEFAULTS["noise_px"], d
     trial, exact, dropped, ghosts = _observe(markers, cameras, rngs["trial"], noise_px, dropout,
                                              ghost_rate, hidden)
 
-    wand_points = wand_motion(wand_frames, np.random.default_rng(wand_seq), rate_hz=wand_rate_hz)
+    wand_points = wand_motion(wand_frames, np.random.default_rng(wand_seq), rate_hz=wand_rate_hz,
+                              wand_length=wand_length, volume=wand_volume)
     wand, _, _, wand_ghosts = _observe(wand_points, cameras, rngs["wand"], noise_px, dropout,
                                       wand_ghost_rate)
-    lpts = lframe_points()
+    lpts = lframe_points() if lframe is None else np.asarray(lframe, float)
     static = np.broadcast_to(lpts, (lframe_frames, 4, 3))
     lframe, _, _, _ = _observe(static, cameras, rngs["lframe"], noise_px, dropout, 0.0)
 
@@ -467,7 +474,7 @@ def synthesize_session(result, cameras, seed=0, noise_px=DEFAULTS["noise_px"], d
         trial=trial,
         wand=wand if wand_frames else None,
         wand_rate_hz=float(wand_rate_hz),
-        wand_length=WAND_LENGTH if wand_frames else None,
+        wand_length=float(wand_length) if wand_frames else None,
         lframe=lframe if lframe_frames else None,
         lframe_points=lpts,
         maneuver={col: maneuver[col].to_numpy(float) for col in maneuver.columns},

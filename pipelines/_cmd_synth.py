@@ -13,9 +13,9 @@ import time
 
 import numpy as np
 from dragline.capture import atomic_directory, check_directory_target
-from dragline.lab import MAX_RATE_HZ, default_lab_cameras, synthesize_session, write_session_dir, write_truth
+from dragline.lab import MAX_RATE_HZ, lab_for_markers, synthesize_session, write_session_dir, write_truth
 from dragline.lab import SYNTH_DEFAULTS as DEFAULTS
-from dragline.simulate import simulate
+from dragline.simulate import marker_positions, simulate
 
 from ._guard import guard_outputs
 from ._options import (
@@ -95,13 +95,15 @@ def run(args):
     physics = physics_from_args(args)
     t0 = time.perf_counter()
     result = simulate(rig, maneuver, discretization, physics, duration=args.duration, rate_hz=args.rate)
-    cameras = [dataclasses.replace(c, dist=c.dist * args.distortion_scale)
-               for c in default_lab_cameras(args.seed)]
+    # The built-in lab for the dragline's work area; a lab placed about any other machine's markers.
+    lab = lab_for_markers(marker_positions(result)[1], args.seed)
+    cameras = [dataclasses.replace(c, dist=c.dist * args.distortion_scale) for c in lab.cameras]
     session, truth = synthesize_session(
         result, cameras, seed=args.seed, noise_px=args.noise_px, dropout=args.dropout,
         ghost_rate=args.ghost_rate, wand_ghost_rate=args.wand_ghost_rate, occlusion=not args.no_occlusion,
         wand_frames=args.wand_frames, wand_rate_hz=args.wand_rate, lframe_frames=args.lframe_frames,
-        metadata={"generator": "dragline synth", "rig": rig.name})
+        metadata={"generator": "dragline synth", "rig": rig.name}, wand_volume=lab.wand_volume,
+        lframe=lab.lframe, wand_length=lab.wand_length)
     write_session_dir(args.out, session, result.model.maneuver, overwrite=args.force)
     if args.truth_out is not None:
         described = {

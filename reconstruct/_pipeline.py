@@ -62,10 +62,10 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ..capture import between_events, read_marker_file, read_session
 from ..simulate import (
-    ROPE_CHANNELS,
     euler_from_matrix,
     load_rig,
     marker_names,
+    rope_channels,
     trajectory_columns,
 )
 from ._bodies import body_frames_paper, body_frames_svd, body_origin, mass_centre
@@ -423,7 +423,7 @@ def trajectory_from_markers(names, positions, rate_hz, rig=None, method="paper",
     Returns
     -------
     table : pandas.DataFrame
-        Columns ``trajectory_columns()`` in order; NaN where unknown (drag
+        Columns ``trajectory_columns(rig)`` in order; NaN where unknown (drag
         cluster angles and body rates, frames without enough markers).
     summary : dict
         JSON-able: ``frames``, ``rate_hz``, ``method``, ``smoothing`` (with
@@ -487,7 +487,7 @@ def trajectory_from_markers(names, positions, rate_hz, rig=None, method="paper",
         centre = locate[body](rig.bodies[body].cg_body)
         _body_columns(cols, body, centre, (nan, nan, nan), np.full((F, 3), np.nan), dt, smoother)
 
-    for channel in ROPE_CHANNELS:
+    for channel in rope_channels(rig):
         rope = channel.split(".")[0]
         spec = rig.ropes.get(rope)
         if spec is None or not spec.marker_distances:
@@ -502,7 +502,7 @@ def trajectory_from_markers(names, positions, rate_hz, rig=None, method="paper",
             continue
         cols[channel] = fixed_part + rope_length_cubic(_rope_markers(rig, rope, col, pts), start, end)
 
-    table = pd.DataFrame({c: cols.get(c, nan) for c in trajectory_columns()})
+    table = pd.DataFrame({c: cols.get(c, nan) for c in trajectory_columns(rig)})
     nan_frames = {c: int(n) for c, n in table.isna().sum().items() if n}
     summary = _json({
         "frames": F, "rate_hz": float(rate_hz), "method": method,
