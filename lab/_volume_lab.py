@@ -8,9 +8,9 @@ wand through. Six cameras of the built-in lab's kind (1.2 MP, the nominal
 7.4 mm lens) stand on a ring about it at the distance where the volume's
 bounding sphere fills 80 % of the narrower half field of view, at
 azimuths 30 deg off the x-z plane (a planar swing is never seen edge-on)
-and alternately 40 and 15 deg up. ``lab_for_markers`` keeps the built-in
-lab when the markers lie inside its wand volume (the dragline's own
-work area), so the paper's study is filmed as before.
+and alternately 40 and 15 deg up. ``lab_for_rig`` films a rig whose file
+says ``lab = "built-in"`` (the dragline's) with the built-in lab, so the
+paper's study is filmed as before, and any other about its markers.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from ._layout import (
     lframe_points,
 )
 
-__all__ = ["LabLayout", "lab_for_markers", "volume_lab"]
+__all__ = ["LabLayout", "lab_for_rig", "volume_lab"]
 
 AZIMUTHS_DEG = (30.0, 90.0, 150.0, 210.0, 270.0, 330.0)
 ELEVATIONS_DEG = (40.0, 15.0)
@@ -98,20 +98,22 @@ def volume_lab(box, seed=None):
     return LabLayout(cameras=cameras, wand_volume=box, lframe=lframe, wand_length=wand_length, kind="volume")
 
 
-def lab_for_markers(markers, seed=None):
-    """The built-in lab when every trial marker lies inside its wand volume, else ``volume_lab`` about them.
+def lab_for_rig(rig, markers, seed=None):
+    """The rig's lab: the built-in one when its file says ``lab = "built-in"``, else ``volume_lab`` about ``markers``.
 
     Parameters
     ----------
+    rig : Rig
     markers : ndarray (frames, markers, 3)
         The trial's true marker positions (m), NaN allowed.
     """
-    points = np.asarray(markers, float).reshape(-1, 3)
-    points = points[np.isfinite(points).all(axis=1)]
-    inside = np.all((points >= WAND_VOLUME[:, 0]) & (points <= WAND_VOLUME[:, 1]))
-    if points.size and inside:
+    if rig.lab == "built-in":
         return LabLayout(cameras=default_lab_cameras(seed), wand_volume=WAND_VOLUME.copy(), lframe=lframe_points(),
                          wand_length=WAND_LENGTH, kind="built-in")
+    points = np.asarray(markers, float).reshape(-1, 3)
+    points = points[np.isfinite(points).all(axis=1)]
+    if not points.size:
+        raise ValueError("the trial has no marker to place a lab about")
     lo, hi = points.min(axis=0), points.max(axis=0)
     pad = 0.1 * float(np.max(hi - lo)) + 0.05
     return volume_lab(np.column_stack([lo - pad, hi + pad]), seed)

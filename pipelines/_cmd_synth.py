@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 from dragline.capture import atomic_directory, check_directory_target
-from dragline.lab import MAX_RATE_HZ, lab_for_markers, synthesize_session, write_session_dir, write_truth
+from dragline.lab import MAX_RATE_HZ, lab_for_rig, synthesize_session, write_session_dir, write_truth
 from dragline.lab import SYNTH_DEFAULTS as DEFAULTS
 from dragline.simulate import marker_positions, simulate
 
@@ -95,8 +95,8 @@ def run(args):
     physics = physics_from_args(args)
     t0 = time.perf_counter()
     result = simulate(rig, maneuver, discretization, physics, duration=args.duration, rate_hz=args.rate)
-    # The built-in lab for the dragline's work area; a lab placed about any other machine's markers.
-    lab = lab_for_markers(marker_positions(result)[1], args.seed)
+    # The lab the rig file names: the dragline's own, or one placed about the machine's markers.
+    lab = lab_for_rig(rig, marker_positions(result)[1], args.seed)
     cameras = [dataclasses.replace(c, dist=c.dist * args.distortion_scale) for c in lab.cameras]
     session, truth = synthesize_session(
         result, cameras, seed=args.seed, noise_px=args.noise_px, dropout=args.dropout,

@@ -273,17 +273,17 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config, between=None):
 
 
 def _check_run_rig(rig):
-    """ValueError unless the rig has the built-in rig's bodies and winches: the synthetic lab's cameras
-    and the reconstruction's body frames still read them by name (``dragline simulate`` and
-    ``dragline diagnose`` of a trajectory table take any rig)."""
+    """ValueError unless the rig has the built-in rig's bodies and winches: the comparison, its report
+    and the results MCAP still read them by name (``dragline simulate``, ``synth``, ``reconstruct`` and
+    ``diagnose`` take any rig)."""
     from dragline.simulate import load_rig
 
     built_in = load_rig()
     missing = [name for name in (*built_in.bodies, *built_in.winches) if name not in (*rig.bodies, *rig.winches)]
     if missing:
         raise ValueError(f"{rig.source}: dragline run needs the built-in dragline's bodies and winches (this rig "
-                         f"lacks {', '.join(missing)}); for another machine use dragline simulate, and dragline "
-                         "diagnose on a trajectory table")
+                         f"lacks {', '.join(missing)}); for another machine run dragline synth, reconstruct "
+                         "and diagnose with --rig")
 
 
 def _builtin_session(tmp, seed, rig):

@@ -133,6 +133,7 @@ class Rig:
     rough_pose: RoughPose | None = None
     release: dict | None = None  # body -> {"position", "angles"}: where the rig's own trial lets go
     report: dict = field(default_factory=dict)  # decay_channels, overlay_channels: the reports' choice
+    lab: str = "volume"  # the synthetic lab that films it: "built-in" (the dig's) or "volume" (about its markers)
 
     def particle_counts(self, discretization="baseline"):
         """Particles per rope segment.
@@ -307,6 +308,7 @@ def _rig_from_doc(doc, source):
         rough_pose=_rough_pose(doc.get("rough_pose"), bodies, ropes, source),
         release=_release(doc.get("release"), bodies, source),
         report={k: tuple(v) for k, v in doc.get("report", {}).items()},
+        lab=doc.get("lab", "volume"),
     )
 
 

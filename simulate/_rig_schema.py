@@ -151,6 +151,8 @@ class RigFile(_Strict):
                                                                      "or a built-in generator's name")
     rough_pose: Optional[RoughPose] = Field(None, description="where the statics start, below")
     report: Optional[Report] = Field(None, description="the reports' channels, below")
+    lab: Literal["built-in", "volume"] = Field("volume", description="the synthetic lab that films it: the "
+                                               "built-in one placed for the dig, or six cameras about its markers' volume")
     release: dict[str, Release] = Field(default_factory=dict, description="the rig's own trial starts from a "
                                                                         "release of these bodies, below")
     tolerances: dict[str, Any] = Field(default_factory=dict, description="docs/rig-file.md")

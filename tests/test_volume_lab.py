@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 from dragline.capture import camera_centre, project_points
-from dragline.lab import lab_for_markers, volume_lab
+from dragline.lab import lab_for_rig, volume_lab
 from dragline.pipelines.cli import main
 from dragline.simulate import load_rig, marker_positions, simulate
 
@@ -28,9 +28,20 @@ def _seen_by(points, cameras):
     return counts
 
 
-def test_the_dig_is_filmed_by_the_built_in_lab():
-    names, markers = marker_positions(simulate(duration=10.0, rate_hz=20.0))
-    assert lab_for_markers(markers).kind == "built-in"
+def test_the_dragline_keeps_its_lab_and_another_machine_gets_one_about_its_markers():
+    dig = simulate(duration=10.0, rate_hz=20.0)
+    lab = lab_for_rig(dig.model.rig, marker_positions(dig)[1])
+    assert lab.kind == "built-in"
+    from dragline.lab import WAND_LENGTH, default_lab_cameras
+
+    assert lab.wand_length == WAND_LENGTH and [c.to_dict() for c in lab.cameras] == [c.to_dict() for c in
+                                                                                    default_lab_cameras()]
+    swing = simulate(load_rig("pendulum"), duration=2.0, rate_hz=20.0)
+    markers = marker_positions(swing)[1]
+    lab = lab_for_rig(swing.model.rig, markers)
+    assert lab.kind == "volume"
+    inside = (markers >= lab.wand_volume[:, 0]) & (markers <= lab.wand_volume[:, 1])
+    assert inside.all()
 
 
 @pytest.mark.parametrize("scale", [0.2, 1.0, 20.0])
