@@ -1,9 +1,11 @@
 """The recording a diagnosis reads, and the checks that it belongs to the rig and its maneuver.
 
-A session directory, an MCAP session, a marker file or a trajectory table
-becomes the measured trajectory table (``load_recording``); the reel table
-must explain the recorded rope lengths (``check_maneuver``), whose clock
-offset ties the recording to the maneuver (``align_with_maneuver``).
+A session directory, an MCAP session, a marker file, a trajectory table,
+or a tracker's table or ROS 2 bag read through a mapping becomes the
+measured trajectory table (``load_recording``); its channels are the rig's
+(``candidate_channels``, ``check_channels``, ``moving_channels``); the
+maneuver must explain the recorded rope lengths (``check_maneuver``), whose
+clock offset ties the recording to the maneuver (``align_with_maneuver``).
 """
 
 from __future__ import annotations
@@ -69,9 +71,10 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
         or a measured trajectory table (CSV with ``time`` and
         ``<body>.<quantity>`` columns).
     maneuver : Maneuver, "dig", path or None
-        The reel table; by default the session's (``maneuver.csv`` in the
+        The maneuver; by default the session's (``maneuver.csv`` in the
         directory, else the MCAP's session info), for a CSV a
-        ``maneuver.csv`` beside it, else the dig maneuver.
+        ``maneuver.csv`` beside it, else the rig's own (the dig for the
+        dragline).
     rig : Rig, optional
     calibration : path, optional
         ``cameras.json`` for a session; by default the one in the session
