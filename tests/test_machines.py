@@ -366,3 +366,29 @@ def test_the_diagnosis_of_a_load_under_a_moving_point(physics, verdict):
     if verdict == "aero_drag":
         named = next(h for h in doc["hypotheses"] if h["name"] == "aero_drag")
         assert named["parameters"]["cd"] == pytest.approx(3.0, rel=0.25)
+
+
+@pytest.mark.parametrize("physics, verdict", [(["aero_drag:cd=3.0"], "aero_drag"), ([], "none")])
+def test_a_load_under_a_point_moving_to_the_end_is_diagnosed_from_its_forced_response(physics, verdict):
+    """A flight: the hook moves as 0.15 m sin(2 pi t / 5 s) for the whole recording, so there is no
+    free decay; the diagnosis judges the forced response on its held-out blocks."""
+    from dragline.compare.diagnose import diagnose
+    from dragline.simulate import parse_physics
+
+    rig = load_rig("slung_load")
+    t = np.round(np.arange(0.0, 12.0 + 1e-9, 0.02), 6)
+    track = np.column_stack([0.15 * np.sin(2 * np.pi * t / 5.0), np.zeros_like(t), np.full_like(t, -4.0)])
+    flight = Maneuver(t, points={"anchor": track})
+    run = simulate(rig, flight, physics=[parse_physics(p) for p in physics], duration=12.0, rate_hz=100.0,
+                   discretization="low")
+    rng = np.random.default_rng(31)
+    table = run.table[["time"] + [c for c in run.table.columns if c.startswith("load.")]].copy()
+    for c in table.columns[1:]:
+        kind = "angle" if c.rsplit(".", 1)[1] in ("roll", "pitch", "yaw", "p", "q", "r") else "position"
+        table[c] = table[c] + rng.normal(0.0, PENDULUM_NOISE[kind], len(table))
+    doc = diagnose(table, flight, rig=rig, discretization="low", candidates=["aero_drag", "rope_bending_damping"]).doc
+    assert doc["verdict"] == verdict, doc["reason"]
+    assert "free decay" not in [w["window"] for w in doc["windows"]]
+    if verdict == "aero_drag":
+        named = next(h for h in doc["hypotheses"] if h["name"] == "aero_drag")
+        assert named["parameters"]["cd"] == pytest.approx(3.0, rel=0.25)
