@@ -257,6 +257,16 @@ def test_every_built_in_machine_runs_its_own_maneuver_with_its_own_channels(name
 PENDULUM_NOISE = {"position": 5e-4, "angle": 5e-3}  # m, rad: a lab's reconstruction
 
 
+def _recorded(run, body, seed):
+    """``body``'s channels of a simulation as a lab records them: white noise of ``PENDULUM_NOISE``."""
+    rng = np.random.default_rng(seed)
+    table = run.table[["time"] + [c for c in run.table.columns if c.startswith(f"{body}.")]].copy()
+    for c in table.columns[1:]:
+        kind = "angle" if c.rsplit(".", 1)[1] in ("roll", "pitch", "yaw", "p", "q", "r") else "position"
+        table[c] = table[c] + rng.normal(0.0, PENDULUM_NOISE[kind], len(table))
+    return table
+
+
 def _pendulum_recording(physics, seed):
     """The pendulum's own trial (a release) simulated with ``physics``, white noise on its motion."""
     from dragline.simulate import parse_physics
@@ -264,12 +274,7 @@ def _pendulum_recording(physics, seed):
     rig = load_rig("pendulum")
     run = simulate(rig, physics=[parse_physics(p) for p in physics], duration=16.0, rate_hz=100.0,
                    discretization="low")
-    rng = np.random.default_rng(seed)
-    table = run.table[["time"] + [c for c in run.table.columns if c.startswith("ball.")]].copy()
-    for c in table.columns[1:]:
-        kind = "angle" if c.rsplit(".", 1)[1] in ("roll", "pitch", "yaw", "p", "q", "r") else "position"
-        table[c] = table[c] + rng.normal(0.0, PENDULUM_NOISE[kind], len(table))
-    return rig, table
+    return rig, _recorded(run, "ball", seed)
 
 
 @pytest.fixture(scope="module")
@@ -355,11 +360,7 @@ def test_the_diagnosis_of_a_load_under_a_moving_point(physics, verdict):
     rig = load_rig("slung_load")
     run = simulate(rig, physics=[parse_physics(p) for p in physics], duration=12.0, rate_hz=100.0,
                    discretization="low")
-    rng = np.random.default_rng(21)
-    table = run.table[["time"] + [c for c in run.table.columns if c.startswith("load.")]].copy()
-    for c in table.columns[1:]:
-        kind = "angle" if c.rsplit(".", 1)[1] in ("roll", "pitch", "yaw", "p", "q", "r") else "position"
-        table[c] = table[c] + rng.normal(0.0, PENDULUM_NOISE[kind], len(table))
+    table = _recorded(run, "load", 21)
     doc = diagnose(table, rig=rig, discretization="low", candidates=["aero_drag", "rope_bending_damping"]).doc
     assert doc["verdict"] == verdict, doc["reason"]
     assert doc["alignment"]["reels_stop"] == pytest.approx(3.0)  # the hook's last move
@@ -381,11 +382,7 @@ def test_a_load_under_a_point_moving_to_the_end_is_diagnosed_from_its_forced_res
     flight = Maneuver(t, points={"anchor": track})
     run = simulate(rig, flight, physics=[parse_physics(p) for p in physics], duration=12.0, rate_hz=100.0,
                    discretization="low")
-    rng = np.random.default_rng(31)
-    table = run.table[["time"] + [c for c in run.table.columns if c.startswith("load.")]].copy()
-    for c in table.columns[1:]:
-        kind = "angle" if c.rsplit(".", 1)[1] in ("roll", "pitch", "yaw", "p", "q", "r") else "position"
-        table[c] = table[c] + rng.normal(0.0, PENDULUM_NOISE[kind], len(table))
+    table = _recorded(run, "load", 31)
     doc = diagnose(table, flight, rig=rig, discretization="low", candidates=["aero_drag", "rope_bending_damping"]).doc
     assert doc["verdict"] == verdict, doc["reason"]
     assert "free decay" not in [w["window"] for w in doc["windows"]]
