@@ -237,8 +237,9 @@ def read_tracked_table(path, mapping):
             q = q[:, [1, 2, 3, 0]]
         return t, np.column_stack([columns[k] for k in entry.position]), q
 
-    return _resampled(path, mapping, {name: track(b) for name, b in mapping.bodies.items()},
-                      {name: track(p) for name, p in mapping.points.items()}, rows=len(frame))
+    tracks = {**{("body", n): track(b) for n, b in mapping.bodies.items()},
+              **{("point", n): track(p) for n, p in mapping.points.items()}}
+    return _resampled(path, mapping, tracks, rows=len(frame))
 
 
 def read_tracked_bag(path, mapping):
@@ -293,21 +294,19 @@ def read_tracked_bag(path, mapping):
         t = np.array([(row[0] - origin) * 1e-9 for row in rows])
         a = np.array([row[1:] for row in rows], float)
         tracks[key] = (t, a[:, 0:3], a[:, 3:7] if key[0] == "body" else None)
-    return _resampled(path, mapping, {n: v for (kind, n), v in tracks.items() if kind == "body"},
-                      {n: v for (kind, n), v in tracks.items() if kind == "point"},
-                      rows=sum(len(r) for r in samples.values()))
+    return _resampled(path, mapping, tracks, rows=sum(len(r) for r in samples.values()))
 
 
-def _resampled(path, mapping, bodies, points, rows):
-    """Tracks (name -> (time s, xyz, quaternion xyzw or None)) on one uniform clock, in the tool's frame.
+def _resampled(path, mapping, tracks, rows):
+    """Tracks (("body" or "point", name) -> (time s, xyz, quaternion xyzw or None)) on one uniform clock, in
+    the tool's frame.
 
     The clock runs at the first body's median step over the time every
     track covers. A track's rows without a time, or repeating one, are
     dropped; across a gap of more than 3.5 steps nothing is made up.
     """
     cleaned, dropped = {}, 0
-    for key, (t, xyz, q) in {**{("body", n): v for n, v in bodies.items()},
-                             **{("point", n): v for n, v in points.items()}}.items():
+    for key, (t, xyz, q) in tracks.items():
         usable = np.flatnonzero(np.isfinite(t))
         order = usable[np.argsort(t[usable], kind="stable")]
         keep = order[np.r_[True, np.diff(t[order]) > 0]]

@@ -335,16 +335,20 @@ def _reel_columns_stop(table):
     cols = [c for c in table.columns if c.endswith(".reel_length")]
     if not cols:
         return None
-    t = np.asarray(table["time"], float)
-    last = None
-    for c in cols:
-        y = np.asarray(table[c], float)
-        if not np.isfinite(y).all():
-            return None
+    columns = [np.asarray(table[c], float) for c in cols]
+    if not all(np.isfinite(y).all() for y in columns):
+        return None
+    return _last_change(np.asarray(table["time"], float), columns)
+
+
+def _last_change(t, columns):
+    """The last time (s) any of ``columns`` (arrays over ``t``) changes beyond rounding; ``t[0]`` if none does."""
+    last = float(t[0])
+    for y in columns:
         scale = max(1.0, float(np.max(np.abs(y))))
         moving = np.flatnonzero(np.abs(np.diff(y)) > 1e-9 * scale)
-        stop = float(t[moving[-1] + 1]) if moving.size else float(t[0])
-        last = stop if last is None else max(last, stop)
+        if moving.size:
+            last = max(last, float(t[moving[-1] + 1]))
     return last
 
 
@@ -395,15 +399,8 @@ def _rate_stop(table):
 
 def maneuver_stop_time(maneuver):
     """The last time (s) any winch's length or moving point of a maneuver changes; its start if none does."""
-    t = np.asarray(maneuver.time, float)
     columns = list(maneuver.lengths.values()) + [xyz[:, k] for xyz in maneuver.points.values() for k in range(3)]
-    last = float(t[0])
-    for y in columns:
-        scale = max(1.0, float(np.max(np.abs(y))))
-        moving = np.flatnonzero(np.abs(np.diff(y)) > 1e-9 * scale)
-        if moving.size:
-            last = max(last, float(t[moving[-1] + 1]))
-    return last
+    return _last_change(np.asarray(maneuver.time, float), columns)
 
 
 def reels_stop_time(measured, simulated, time_offset=0.0):

@@ -34,6 +34,7 @@ __all__ = [
     "WAND_LENGTH",
     "WAND_VOLUME",
     "default_lab_cameras",
+    "lab_cameras",
     "lframe_points",
     "wand_motion",
 ]
@@ -88,13 +89,7 @@ def _look_at(centre, aim):
 
 
 def default_lab_cameras(seed=None):
-    """The six true cameras of the simulated lab.
-
-    Poses are the fixed layout above; the intrinsics are drawn from ``seed``
-    around the nominal lens: focal length within 3 % of
-    ``NOMINAL_FOCAL_PX`` (square pixels), principal point within about
-    10 px of the image centre, radial distortion ``k1`` in [-0.08, 0.05],
-    ``k2`` in [-0.02, 0.02], tangential ``p1, p2`` of order 1e-4, ``k3 = 0``.
+    """The six true cameras of the simulated lab: the fixed layout above, intrinsics as ``lab_cameras`` draws them.
 
     Parameters
     ----------
@@ -107,10 +102,22 @@ def default_lab_cameras(seed=None):
     cameras : list of Camera
         Named ``cam1`` ... ``cam6``; image size ``IMAGE_SIZE``.
     """
+    return lab_cameras(_CENTRES, _AIMS, seed)
+
+
+def lab_cameras(centres, aims, seed=None):
+    """True cameras at ``centres`` looking at ``aims`` (m, one row each), their intrinsics drawn from ``seed``.
+
+    The intrinsics scatter about the nominal lens: focal length within 3 %
+    of ``NOMINAL_FOCAL_PX`` (square pixels), principal point within about
+    10 px of the image centre, radial distortion ``k1`` in [-0.08, 0.05],
+    ``k2`` in [-0.02, 0.02], tangential ``p1, p2`` of order 1e-4, ``k3 = 0``.
+    ``None`` is ``seed=0``. Cameras are named ``cam1``, ``cam2``, ...
+    """
     rng = np.random.default_rng(0 if seed is None else seed)
     width, height = IMAGE_SIZE
     cameras = []
-    for i, (centre, aim) in enumerate(zip(_CENTRES, _AIMS)):
+    for i, (centre, aim) in enumerate(zip(np.asarray(centres, float), np.asarray(aims, float))):
         f = NOMINAL_FOCAL_PX * (1.0 + rng.uniform(-0.03, 0.03))
         cx = (width - 1) / 2 + float(np.clip(rng.normal(0.0, 5.0), -10.0, 10.0))
         cy = (height - 1) / 2 + float(np.clip(rng.normal(0.0, 5.0), -10.0, 10.0))

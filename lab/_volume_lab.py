@@ -18,18 +18,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
-from ..capture import Camera
 from ._layout import (
     IMAGE_SIZE,
     LFRAME_ARMS,
     NOMINAL_FOCAL_PX,
     WAND_LENGTH,
     WAND_VOLUME,
-    _look_at,
     default_lab_cameras,
+    lab_cameras,
     lframe_points,
 )
 
@@ -51,15 +49,6 @@ class LabLayout:
     lframe: np.ndarray  # (4, 3)
     wand_length: float
     kind: str  # "built-in" or "volume"
-
-
-def _intrinsics(rng):
-    width, height = IMAGE_SIZE
-    f = NOMINAL_FOCAL_PX * (1.0 + rng.uniform(-0.03, 0.03))
-    cx = (width - 1) / 2 + float(np.clip(rng.normal(0.0, 5.0), -10.0, 10.0))
-    cy = (height - 1) / 2 + float(np.clip(rng.normal(0.0, 5.0), -10.0, 10.0))
-    dist = [rng.uniform(-0.08, 0.05), rng.uniform(-0.02, 0.02), *np.clip(rng.normal(0.0, 2e-4, 2), -5e-4, 5e-4), 0.0]
-    return [[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]], dist
 
 
 def volume_lab(box, seed=None):
@@ -84,16 +73,11 @@ def volume_lab(box, seed=None):
     radius = 0.5 * float(np.linalg.norm(box[:, 1] - box[:, 0]))
     half_fov = math.atan(0.5 * min(IMAGE_SIZE) / NOMINAL_FOCAL_PX)
     distance = radius / math.sin(FILL * half_fov)
-    rng = np.random.default_rng(0 if seed is None else seed)
-    cameras = []
-    for i, azimuth in enumerate(np.radians(AZIMUTHS_DEG)):
-        elevation = math.radians(ELEVATIONS_DEG[i % 2])
-        where = centre + distance * np.array([math.cos(elevation) * math.cos(azimuth),
-                                              math.cos(elevation) * math.sin(azimuth), -math.sin(elevation)])
-        R = _look_at(where, centre)
-        K, dist = _intrinsics(rng)
-        cameras.append(Camera(name=f"cam{i + 1}", image_size=IMAGE_SIZE, K=K, dist=dist,
-                              rvec=cv2.Rodrigues(R)[0].ravel(), tvec=-R @ where))
+    elevations = np.radians([ELEVATIONS_DEG[i % 2] for i in range(len(AZIMUTHS_DEG))])
+    azimuths = np.radians(AZIMUTHS_DEG)
+    centres = centre + distance * np.column_stack([np.cos(elevations) * np.cos(azimuths),
+                                                   np.cos(elevations) * np.sin(azimuths), -np.sin(elevations)])
+    cameras = lab_cameras(centres, np.tile(centre, (len(centres), 1)), seed)
     wand_length = min(WAND_LENGTH, 0.5 * float((box[:, 1] - box[:, 0]).min()))
     return LabLayout(cameras=cameras, wand_volume=box, lframe=lframe, wand_length=wand_length, kind="volume")
 

@@ -25,7 +25,7 @@ from dragline.simulate import (
 )
 
 from ._guard import guard_outputs
-from ._options import check_output_path
+from ._options import check_output_path, discretization_from_args
 
 # Modes listed: a few above the rigid swings is what a user checks a model by.
 MODES_SHOWN = 8
@@ -48,16 +48,16 @@ def add_parser(sub):
 def describe_rig(rig, discretization="baseline"):
     """What a rig holds and how it hangs, JSON-ready."""
     maneuver = default_maneuver(rig)
-    moved = sorted(maneuver.points)
+    counts = rig.particle_counts(discretization)
     doc = {
         "name": rig.name, "source": rig.source, "g": rig.g,
         "bodies": {n: {"mass": b.mass, "markers": len(b.markers), "points": sorted(b.points)}
                    for n, b in rig.bodies.items()},
-        "points": {n: {"position": list(map(float, p)), "moved_by_maneuver": n in moved}
+        "points": {n: {"position": list(map(float, p)), "moved_by_maneuver": n in maneuver.points}
                    for n, p in rig.fixed_points.items()},
         "ropes": {n: {"kind": r.kind, "path": [r.start] + ([r.ring] if r.ring else []) + [r.end],
                       "length": r.length, "winch": r.winch,
-                      "particles": rig.particle_counts(discretization)[n]} for n, r in rig.ropes.items()},
+                      "particles": counts[n]} for n, r in rig.ropes.items()},
         "winches": dict(rig.winches),
         "rings": {r.ring_site: {"at": r.ring, "rope": n} for n, r in rig.ropes.items() if r.ring},
         "maneuver": {"source": rig.maneuver or "dig", "rows": int(maneuver.time.size),
@@ -148,7 +148,7 @@ def run(args):
     guard_outputs([args.rig], files=[p for p in (args.json, args.figure) if p])
     rig = load_rig(args.rig)
     try:
-        doc, model, state = describe_rig(rig, args.discretization)
+        doc, model, state = describe_rig(rig, discretization_from_args(args, rig))
     except StaticsError as exc:
         raise ValueError(f"{rig.source}: {exc}") from None
     print("\n".join(_lines(doc)))

@@ -62,10 +62,10 @@ def rig_from_args(args):
     return load_rig(args.rig)
 
 
-def maneuver_from_args(args, rig=None):
+def maneuver_from_args(args, rig):
     """The --maneuver option: a built-in maneuver's name, a CSV, or (None) the rig's own."""
     if args.maneuver is None:
-        return default_maneuver(load_rig() if rig is None else rig)
+        return default_maneuver(rig)
     return dig_maneuver() if args.maneuver == "dig" else read_maneuver_csv(args.maneuver)
 
 

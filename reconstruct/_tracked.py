@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from ..simulate import BODY_QUANTITIES, Maneuver, euler_from_matrix
+from ._bodies import mass_centre
 from ._rates import body_rates, finite_difference
 
 __all__ = ["tracked_trajectory"]
@@ -62,7 +63,7 @@ def tracked_trajectory(poses, rig):
         if T is None:
             centre, angles, rates = poses.positions[name] + cg, (nan, nan, nan), np.full((time.size, 3), np.nan)
         else:
-            centre = poses.positions[name] + T @ cg
+            centre = mass_centre(T, poses.positions[name], cg)
             angles = euler_from_matrix(T)
             rates = body_rates(T, dt)
         velocity = finite_difference(centre, dt)
@@ -73,7 +74,7 @@ def tracked_trajectory(poses, rig):
         columns.update({f"{name}.{q}": np.asarray(values[q], float) for q in BODY_QUANTITIES})
     maneuver = None
     if poses.points:
-        if np.any([~np.isfinite(p).all() for p in poses.points.values()]):
+        if not all(np.isfinite(p).all() for p in poses.points.values()):
             raise ValueError("a tracked point's track has gaps; the model's input must be continuous")
         maneuver = Maneuver(time, points=dict(poses.points))
     return pd.DataFrame(columns), maneuver

@@ -6,7 +6,7 @@ winch of the rig (the rope it has paid out), and optionally ``<point>.x,
 (a trolley on its rail, a boom tip, the drone a load hangs from). Rows are
 linearly interpolated (seed paper section 2.3) and held at the last row
 after it ends. Which columns a rig needs is checked when the maneuver
-meets it (``_simulate.check_reel_table``).
+meets it (``_model.assemble``).
 """
 
 from __future__ import annotations
@@ -97,10 +97,9 @@ def default_maneuver(rig):
     """The rig's own maneuver (its file's ``maneuver``): a CSV it names, else a built-in generator's (the dig)."""
     from ._dig import BUILT_IN_MANEUVERS
 
-    name = getattr(rig, "maneuver", None)
-    if name is None or name in BUILT_IN_MANEUVERS:
-        return BUILT_IN_MANEUVERS[name or "dig"]()
-    return read_maneuver_csv(name)
+    if rig.maneuver is None or rig.maneuver in BUILT_IN_MANEUVERS:
+        return BUILT_IN_MANEUVERS[rig.maneuver or "dig"]()
+    return read_maneuver_csv(rig.maneuver)
 
 
 def read_maneuver_csv(path):

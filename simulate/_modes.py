@@ -18,7 +18,7 @@ import numpy as np
 from . import _kernel
 from ._kinematics import euler_rates_from_body_rates
 from ._model import kernel_model
-from ._statics import _frozen
+from ._statics import _at_rest, _frozen, _unknown_index
 
 __all__ = ["Modes", "linear_modes"]
 
@@ -42,17 +42,9 @@ class Modes:
     dominant: list
 
 
-def _coordinates(model):
-    """Indices into the state of every position coordinate: each body's mass centre and Euler angles,
-    the particles, the ring slides (the order ``_accelerations`` returns their second derivatives in)."""
-    index = [12 * b + k for b in range(model.n_bodies) for k in (0, 1, 2, 6, 7, 8)]
-    index += list(range(model.o_part, model.o_vel))
-    index += [model.o_ring + 2 * r for r in range(model.n_rings)]
-    return np.array(index, dtype=np.int64)
-
-
 def _accelerations(model, m, work, y, t):
-    """Second derivatives of the position coordinates at state ``y`` (velocities zero)."""
+    """Second derivatives of the position coordinates (``_statics._unknown_index``, in its order) at state ``y``
+    (velocities zero)."""
     dy = np.zeros_like(y)
     _kernel.rhs(t, y, dy, m, work)
     parts = []
@@ -86,11 +78,8 @@ def linear_modes(model, state, t=0.0, count=None):
     """
     m = kernel_model(_frozen(model, t))
     work = _kernel.make_work(m)
-    index = _coordinates(model)
-    y0 = np.array(state, float)
-    y0[[12 * b + k for b in range(model.n_bodies) for k in (3, 4, 5, 9, 10, 11)]] = 0.0
-    y0[model.o_vel : model.o_force] = 0.0
-    y0[model.o_ring + 1 :: 2] = 0.0
+    index = _unknown_index(model)
+    y0 = _at_rest(model, state)
     jac = np.empty((index.size, index.size))
     for k, i in enumerate(index):
         up, down = y0.copy(), y0.copy()

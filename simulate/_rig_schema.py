@@ -158,22 +158,6 @@ class RigFile(_Strict):
     tolerances: dict[str, Any] = Field(default_factory=dict, description="docs/rig-file.md")
     tolerance_groups: dict[str, list[str]] = Field(default_factory=dict, description="docs/rig-file.md")
 
-    @model_validator(mode="after")
-    def _length_or_winch(self):
-        wound = {}
-        for winch, w in self.winches.items():
-            if w.rope not in self.ropes:
-                raise ValueError(f"winches.{winch}.rope = {w.rope!r}: no such rope")
-            other = wound.get(w.rope) or self.ropes[w.rope].reel
-            if other is not None:
-                raise ValueError(f"winches.{winch}.rope = {w.rope!r}: rope {w.rope!r} is already paid out by "
-                                 f"winch {other!r}")
-            wound[w.rope] = winch
-        for name, rope in self.ropes.items():
-            if rope.reel is None and rope.length is None and name not in wound:
-                raise ValueError(f"rope {name!r} needs a length or a winch ([winches.NAME] rope = {name!r})")
-        return self
-
 
 def check_rig_doc(doc, source):
     """``doc`` (parsed TOML) checked against `RigFile`; ValueError with one line naming the file otherwise."""

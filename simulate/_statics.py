@@ -167,10 +167,7 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     newton = kernel_model(arrays)
     work = _kernel.make_work(newton)
     held_index = tuple(model.body_names.index(name) for name in held) if held else ()
-    if y0 is None:
-        y = initial_state(model, t, held)
-    else:
-        y = np.array(y0, float)
+    y = initial_state(model, t, held) if y0 is None else np.array(y0, float)
     relaxing = _fictitious_masses(model, arrays, y, t)
     relaxing["body_accel_scale"] = relaxing["body_accel_scale"].copy()
     relaxing["body_accel_scale"][list(held_index)] = 0.0

@@ -109,10 +109,10 @@ def align_recording(state):
     time = t_al[keep]
     if time.size < 16:
         raise ValueError("the recording does not overlap the maneuver in time")
-    if time[-1] - t_stop < MIN_DECAY_S and rig.winches:
-        raise ValueError(f"the recording ends {max(time[-1] - t_stop, 0.0):.2f} s after the maneuver stops; a "
-                         f"diagnosis needs a free decay of at least {MIN_DECAY_S:g} s (more than one swing)")
     if time[-1] - t_stop < MIN_DECAY_S:
+        if rig.winches:
+            raise ValueError(f"the recording ends {max(time[-1] - t_stop, 0.0):.2f} s after the maneuver stops; a "
+                             f"diagnosis needs a free decay of at least {MIN_DECAY_S:g} s (more than one swing)")
         # A machine driven by a measured track to the end (a load under a flying drone) has no free
         # decay: the whole recording is judged as its forced response, on held-out blocks as ever.
         _note(state, "the maneuver's points move to the recording's end: no free decay, the forced response "

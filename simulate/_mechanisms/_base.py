@@ -65,7 +65,7 @@ def rings(model, which):
             sites.setdefault(name, []).append(ring)
     if which not in sites:
         names = sorted({model.rig.ropes[seg].ring_site for seg in model.seg_ring})
-        raise ValueError(f"pulley {which!r} unknown ({', '.join(names + ['all']) if names else 'the rig has no ring'})")
+        raise ValueError(f"pulley {which!r} unknown ({', '.join(names + ['all'])})")
     return sorted(set(sites[which]))
 
 
