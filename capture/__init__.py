@@ -16,7 +16,9 @@
   (``between_events``, ``event_frame``); tables of tracked rigid-body poses
   read through a declared mapping (``read_tracked_table``, and a ROS 2
   bag's pose topics ``read_tracked_bag``,
-  ``load_tracked_mapping``: ``TrackedPoses``, ``TrackedMapping``)
+  ``load_tracked_mapping``: ``TrackedPoses``, ``TrackedMapping``), and the
+  clock of a log written without timestamps recovered from its motion
+  (``recover_clock``)
 - helpers every stage uses: strict JSON (``json_text``, ``json_ready``,
   ``write_json``), schema messages (``describe_validation_error``,
   ``fields_markdown``, ``key_text``, ``short_repr``) and the column
@@ -62,3 +64,4 @@ from ._tracked import (
     read_tracked_bag,
     read_tracked_table,
 )
+from ._clock import recover_clock

@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from ._clock import recover_clock
 from ._schema_tools import describe_validation_error, fields_markdown
 
 __all__ = ["TrackedPoses", "TrackedMapping", "read_tracked_table", "read_tracked_bag", "load_tracked_mapping",
@@ -86,11 +87,20 @@ class TrackedTable(_Strict):
     time_unit: Literal["s", "ms", "us", "ns"] = Field("s", description="unit of the time column")
     rate_hz: Optional[float] = Field(None, gt=0, le=100_000, allow_inf_nan=False,
                                      description="rows per second, for a table without a time column")
+    clock: Literal["rows", "motion"] = Field(
+        "rows", description="with `rate_hz`: `rows`, every row one period; `motion`, rows at that rate on "
+                            "average, each row's time recovered from the tracked motion (a log written on callbacks)")
     units: Literal["m", "cm", "mm"] = Field("m", description="unit of every position")
     up: Literal["+x", "-x", "+y", "-y", "+z", "-z"] = Field("+z", description="the recording's axis that points up")
     quaternion: Literal["xyzw", "wxyz"] = Field("xyzw", description="the order of every quaternion's columns")
     stamp: Literal["header", "log"] = Field("header", description="in a bag: each message's header stamp, or the "
                                                                  "time the recorder logged it")
+
+    @model_validator(mode="after")
+    def _clock_needs_rate(self):
+        if self.clock != "rows" and self.rate_hz is None:
+            raise ValueError(f"`clock = \"{self.clock}\"` times a table's rows from its `rate_hz`: give one")
+        return self
 
 
 class TrackedMapping(_Strict):
@@ -227,6 +237,10 @@ def read_tracked_table(path, mapping):
     columns = _columns(frame, mapping, path)
     if mapping.table.time is None:
         t = np.arange(len(frame)) / mapping.table.rate_hz
+        if mapping.table.clock == "motion":
+            tracked = [columns[k] for entry in (*mapping.bodies.values(), *mapping.points.values())
+                       for k in entry.position]
+            t = recover_clock(np.column_stack(tracked) * _UNITS[mapping.table.units], 1.0 / mapping.table.rate_hz)
     else:
         t = columns[mapping.table.time] * _TIME_UNITS[mapping.table.time_unit]
 

@@ -14,7 +14,8 @@ A key names what it moves:
 
 - ``bodies.<body>.mass``, ``bodies.<body>.cg_x`` (or ``cg_y``, ``cg_z``)
 - ``ropes.<group>.<property>`` with ``<property>`` one of
-  ``static_stiffness``, ``viscous_stiffness``, ``viscous_damping``, and
+  ``static_stiffness``, ``viscous_stiffness``, ``viscous_damping`` or
+  ``length`` (the unstretched length of a rope on no winch, m), and
   ``<group>`` a rope name or a group of ``[tolerance_groups]`` (one rope
   or chain type, every segment of it moved together)
 - ``fixed_points.<point>.x`` (or ``y``, ``z``)
@@ -39,7 +40,8 @@ from ..capture import key_text
 
 __all__ = ["RigParameter", "parse_tolerances", "apply_parameters", "draw_parameters"]
 
-_ROPE_PROPERTIES = ("static_stiffness", "viscous_stiffness", "viscous_damping")
+_ROPE_PROPERTIES = ("static_stiffness", "viscous_stiffness", "viscous_damping", "length")
+_ROPE_UNITS = {"static_stiffness": "N", "viscous_stiffness": "N", "viscous_damping": "N s", "length": "m"}
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
@@ -133,10 +135,13 @@ def parse_tolerances(doc, bodies, ropes, fixed, source="rig", winches=None):
         elif parts[0] == "ropes" and len(parts) == 3 and parts[2] in _ROPE_PROPERTIES \
                 and (parts[1] in groups or parts[1] in ropes):
             targets = groups.get(parts[1], (parts[1],))
+            if parts[2] == "length" and any(ropes[t].winch is not None for t in targets):
+                raise ValueError(f"{where}: a rope on a winch takes its length from the maneuver; its tolerance "
+                                 "is the winch's zero (winches.NAME.zero)")
             values = {getattr(ropes[t], parts[2]) for t in targets}
             if len(values) != 1:
                 raise ValueError(f"{where}: the ropes of group {parts[1]!r} differ in {parts[2]}")
-            kind, fld, nominal, unit = "rope", parts[2], float(values.pop()), "N" if "stiffness" in parts[2] else "N s"
+            kind, fld, nominal, unit = "rope", parts[2], float(values.pop()), _ROPE_UNITS[parts[2]]
         elif parts[0] == "fixed_points" and len(parts) == 3 and parts[1] in fixed and parts[2] in _AXES:
             kind, fld, nominal, unit, targets = "fixed_point", parts[2], float(fixed[parts[1]][_AXES[parts[2]]]), "m", (parts[1],)
         elif parts[0] in ("winches", "reels") and len(parts) == 3 and parts[1] in (winches or {}) \
