@@ -41,14 +41,16 @@ import time
 import numpy as np
 
 from dragline.compare import as_executor, diagnose_path, executor_from, write_diagnosis_json
-from dragline.lab import default_lab_cameras, synthesize_session, write_session_dir
+from dragline.lab import default_lab_cameras, lab_for_rig, synthesize_session, write_session_dir
 from dragline.simulate import (
     MECHANISMS,
     apply_parameters,
+    default_maneuver,
     dig_maneuver,
     draw_parameters,
     load_rig,
     make_mechanism,
+    marker_positions,
     simulate,
 )
 
@@ -155,14 +157,15 @@ OUT_OF_MENU = (("material_damping", 2.5), ("material_damping", 3.5), ("sheave_be
 TRUTH_DISCRETIZATION = "medium"
 
 
-def _truth_world(name, value, seed, effect=True):
+def _truth_world(name, value, seed, effect=True, rig_name=None):
     """Truth rig, maneuver (with the drawn reel zeros), discretization, physics and drawn coordinates.
 
     ``effect=False``: the same world without the case's effect (no
     mechanism; the drawn material damping kept), to measure its size.
+    ``rig_name``: another machine than the dragline, with its own maneuver.
     """
 
-    rig = load_rig()
+    rig = load_rig(rig_name)
     params = rig.tolerances
     coords = draw_parameters(params, np.random.default_rng(seed))
     physics = []
@@ -170,31 +173,34 @@ def _truth_world(name, value, seed, effect=True):
         coords = np.array([math.log(value) if p.field == "viscous_damping" else x for p, x in zip(params, coords)])
     elif effect and name is not None:
         physics = [make_mechanism(name, **{MECHANISMS[name].main: value})]
-    truth_rig, truth_maneuver = apply_parameters(rig, dig_maneuver(), params, coords)
+    truth_rig, truth_maneuver = apply_parameters(rig, default_maneuver(rig), params, coords)
     return truth_rig, truth_maneuver, TRUTH_DISCRETIZATION, physics, coords
 
 
 def _effect_size(result, without):
-    """How much the case's effect moves the bucket: RMS over the record of position (mm) and pitch (deg).
+    """How much the case's effect moves the rig's first body (the dragline's bucket): RMS over the record
+    of its position in x and z (mm) and of its pitch (deg).
 
     ``result`` and ``without``: the truth simulated with and without it.
     A yardstick for "barely detectable": the lab's markers are good to
     about a millimetre.
     """
     a, b = result.table, without.table
-    d = np.hypot(np.asarray(a["bucket.x"]) - np.asarray(b["bucket.x"]),
-                 np.asarray(a["bucket.z"]) - np.asarray(b["bucket.z"]))
-    p = np.asarray(a["bucket.pitch"]) - np.asarray(b["bucket.pitch"])
+    body = next(iter(result.model.rig.bodies))
+    d = np.hypot(np.asarray(a[f"{body}.x"]) - np.asarray(b[f"{body}.x"]),
+                 np.asarray(a[f"{body}.z"]) - np.asarray(b[f"{body}.z"]))
+    p = np.asarray(a[f"{body}.pitch"]) - np.asarray(b[f"{body}.pitch"])
     return {"bucket_mm": float(1000 * np.sqrt(np.mean(d**2))),
             "bucket_pitch_deg": float(np.degrees(np.sqrt(np.mean(p**2))))}
 
 
-def _run_case(name, value, seed, world="nominal", workdir=None, keep=False):
+def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_name=None):
     """Make one blind session, diagnose it from its directory alone, score it here.
 
     ``workdir``: where the session is made (a temporary folder of the
     machine that runs the case when None); ``keep``: return the case's
-    diagnosis document too (under ``diagnosis``).
+    diagnosis document too (under ``diagnosis``); ``rig_name``: a realistic
+    case on another machine (its own maneuver, ``[demo]`` duration and lab).
     """
 
     own = workdir is None
@@ -202,27 +208,35 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False):
     folder = os.path.join(workdir, f"case{seed}")
     started = time.perf_counter()
     coords = None
+    machine = load_rig(rig_name)
+    duration = machine.demo["duration"] if rig_name is not None and machine.demo else 10.0
     if world == "realistic":
-        rig, maneuver, discretization, physics, coords = _truth_world(name, value, seed)
-        result = simulate(rig, maneuver, discretization, physics, duration=10.0, rate_hz=200.0)
-        recorded_maneuver = dig_maneuver()  # the user's reel table: the drum's zero error is hidden
-        without = None if name is None else simulate(*_truth_world(name, value, seed, effect=False)[:4],
-                                                       duration=10.0, rate_hz=200.0)
+        rig, maneuver, discretization, physics, coords = _truth_world(name, value, seed, rig_name=rig_name)
+        result = simulate(rig, maneuver, discretization, physics, duration=duration, rate_hz=200.0)
+        recorded_maneuver = default_maneuver(machine)  # the user's reel table: the drum's zero error is hidden
+        without = None if name is None else simulate(
+            *_truth_world(name, value, seed, effect=False, rig_name=rig_name)[:4], duration=duration, rate_hz=200.0)
     else:
         physics = [] if name is None else [make_mechanism(name, **{MECHANISMS[name].main: value})]
         result = simulate(physics=physics, duration=10.0, rate_hz=200.0)
         recorded_maneuver = result.model.maneuver
         without = None if name is None else simulate(duration=10.0, rate_hz=200.0)
     effect = {"bucket_mm": 0.0, "bucket_pitch_deg": 0.0} if without is None else _effect_size(result, without)
-    session, _ = synthesize_session(result, default_lab_cameras(seed), seed=seed,
-                                    metadata={"generator": "dragline bench discovery"})
+    if rig_name is None:
+        session, _ = synthesize_session(result, default_lab_cameras(seed), seed=seed,
+                                        metadata={"generator": "dragline bench discovery"})
+    else:
+        lab = lab_for_rig(machine, marker_positions(result)[1], seed)
+        session, _ = synthesize_session(result, lab.cameras, seed=seed, wand_volume=lab.wand_volume,
+                                        lframe=lab.lframe, wand_length=lab.wand_length,
+                                        metadata={"generator": "dragline bench discovery", "rig": machine.name})
     write_session_dir(folder, session, recorded_maneuver)
     made = time.perf_counter() - started
     out = {"truth": name or "none", "value": value, "seed": seed, "world": world, "synth_seconds": made,
-           "effect": effect}
+           "effect": effect, "rig": rig_name or "dragline"}
     t0 = time.perf_counter()
     try:
-        doc = diagnose_path(folder, workers=1, seed=seed).doc
+        doc = diagnose_path(folder, rig=machine, workers=1, seed=seed).doc
         if keep:
             out["diagnosis"] = doc  # written by the caller: a Dask worker's disk is not the user's
     except ValueError as exc:
@@ -238,7 +252,7 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False):
     out["out_of_menu"] = not in_menu
     out["right"] = (doc["verdict"] == (name or "none")) if in_menu else doc["verdict"] in ("none", "unexplained")
     if coords is not None:
-        out["calibration"] = _calibration_errors(doc, coords)
+        out["calibration"] = _calibration_errors(doc, coords, machine)
     second = doc.get("second_mechanism") or {}
     out["also"] = [h["name"] for h in second.get("candidates", []) if h["significant"]]
     hyp = {h["name"]: h for h in doc["hypotheses"]}
@@ -257,10 +271,10 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False):
     return out
 
 
-def _calibration_errors(doc, coords):
+def _calibration_errors(doc, coords, rig):
     """Per rig parameter: truth and estimate in tolerances, identifiable or not."""
 
-    params = load_rig().tolerances
+    params = rig.tolerances
     entries = {e["parameter"]: e for e in doc.get("calibration", {}).get("parameters", [])}
     out = {}
     for p, x in zip(params, coords):
@@ -328,7 +342,8 @@ def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, pr
     started = time.perf_counter()
     session = executor.open(_no_context)
     try:
-        jobs = [(*c[:3], c[3] if len(c) > 3 else "nominal", workdir, bool(keep)) for c in cases]
+        jobs = [(*c[:3], c[3] if len(c) > 3 else "nominal", workdir, bool(keep), c[4] if len(c) > 4 else None)
+                for c in cases]
         results = session.map(_run_case, jobs, each=finished)
     finally:
         session.close()
@@ -493,7 +508,8 @@ def _fmt(x):
 def bench_command(args):
     """``dragline bench discovery``: returns (report, summary lines) like the other benches.
 
-    Reads ``args.seed`` and, when the bench command has them, ``args.quick``,
+    Reads ``args.seed`` and, when the bench command has them, ``args.rig``
+    (with ``args.realism``: another machine's cases, ``_machine_cases``), ``args.quick``,
     ``args.limits`` (the ``LIMIT_CASES`` instead; with ``args.realism``
     the ``REALISTIC_LIMIT_CASES``), ``args.workers``,
     ``args.scheduler`` (a Dask cluster; also ``DRAGLINE_SCHEDULER``) and
@@ -504,6 +520,10 @@ def bench_command(args):
     cases = None
     if getattr(args, "limits", False):
         cases = REALISTIC_LIMIT_CASES if getattr(args, "realism", False) else LIMIT_CASES
+    elif getattr(args, "realism", False) and getattr(args, "rig", None):
+        from ._machine_cases import machine_cases
+
+        cases = machine_cases(args.rig, args.seed)
     elif getattr(args, "realism", False):
         cases = realistic_cases(args.seed, quick=bool(getattr(args, "quick", False)))
     report = bench_discovery(cases=cases,

@@ -30,13 +30,13 @@ from ..simulate import (
     StaticsError,
     euler_rates_from_body_rates,
     simulate,
-    trajectory_columns,
 )
-from ._align import align_tables, channel_status, check_table, estimate_time_offset, reels_stop_time
+from ._align import align_tables, channel_status, check_table, estimate_time_offset, maneuver_stop_time, reels_stop_time
 from ._decay import free_decay, matrix_pencil
 from ._metrics import channel_metrics, peak, rms_error
 from ._executor import as_executor
 from ._paper import DIG_PEAKS, PAPER_SOURCE, SPREADER_BAR_X_OFFSET
+from ._preset import comparison_preset
 
 __all__ = [
     "TOLERANCES",
@@ -129,8 +129,8 @@ def iso_grade(rating):
     return "poor"
 
 
-def _verdict(channel, metrics, measured):
-    tol = TOLERANCES[channel_kind(channel)]["rms"]
+def _verdict(channel, metrics, measured, tolerances):
+    tol = tolerances[channel_kind(channel)]["rms"]
     finite = measured[np.isfinite(measured)]
     iso_applies = bool(finite.size and np.ptp(finite) > ISO_MIN_RANGE * tol)
     rating = metrics["iso_rating"]
@@ -147,9 +147,9 @@ def _verdict(channel, metrics, measured):
     }
 
 
-def _channel_entries(time, meas, sim, usable, missing):
+def _channel_entries(time, meas, sim, usable, missing, preset):
     channels = {}
-    for ch in trajectory_columns()[1:]:  # canonical order, missing ones in place
+    for ch in preset.channels:  # canonical order, missing ones in place
         if ch in missing:
             channels[ch] = {"status": "missing", "reason": missing[ch], "verdict": "missing"}
             continue
@@ -161,7 +161,7 @@ def _channel_entries(time, meas, sim, usable, missing):
             continue
         entry = {"status": "ok", "kind": channel_kind(ch)}
         entry.update(channel_metrics(time, m, s))
-        entry.update(_verdict(ch, entry, m))
+        entry.update(_verdict(ch, entry, m, preset.tolerances))
         channels[ch] = entry
     return channels
 
@@ -274,9 +274,9 @@ def _decay_difference(time, m_values, s_values, m, s):
     return out
 
 
-def _free_decay(time, meas, sim, t_stop):
+def _free_decay(time, meas, sim, t_stop, channels):
     out = {}
-    for ch in FREE_DECAY_CHANNELS:
+    for ch in channels:
         entry = {}
         for side, table in (("measured", meas), ("simulated", sim)):
             if ch not in table.columns:
@@ -317,24 +317,25 @@ def _decay_summary(decay):
     }
 
 
-def _study_summary(time, meas, study):
+def _study_summary(time, meas, study, channel):
     levels = {}
-    m = np.asarray(meas["bucket.pitch"], float) if "bucket.pitch" in meas.columns else None
+    m = np.asarray(meas[channel], float) if channel in meas.columns else None
     for level, run in study.items():
         if run.get("error"):
             levels[level] = {"status": "failed", "reason": run["error"]}
             continue
         table = run["table"]
-        s = np.interp(time, np.asarray(table["time"], float), np.asarray(table["bucket.pitch"], float),
+        s = np.interp(time, np.asarray(table["time"], float), np.asarray(table[channel], float),
                       left=np.nan, right=np.nan)
-        entry = {"status": "ok", "n_state": run.get("n_state"), "bucket_pitch_rms_error": None}
+        entry = {"status": "ok", "n_state": run.get("n_state"), "rms_error": None}
         if m is not None and np.count_nonzero(np.isfinite(s) & np.isfinite(m)):
-            entry["bucket_pitch_rms_error"] = rms_error(m, s)
+            entry["rms_error"] = rms_error(m, s)
         levels[level] = entry
-    return {"channel": "bucket.pitch", "levels": levels}
+    return {"channel": channel, "levels": levels}
 
 
-def compare_tables(measured, simulated, time_offset="auto", free_decay_start=None, max_offset=None, study=None):
+def compare_tables(measured, simulated, time_offset="auto", free_decay_start=None, max_offset=None, study=None,
+                   rig=None, maneuver=None):
     """Compare a measured with a simulated trajectory table.
 
     Parameters
@@ -354,6 +355,12 @@ def compare_tables(measured, simulated, time_offset="auto", free_decay_start=Non
     study : dict, optional
         Output of :func:`discretization_study`; summarised under
         ``discretization_study``.
+    rig : Rig, optional
+        The machine (default the built-in dragline): its channels,
+        tolerances and figures (``comparison_preset``).
+    maneuver : Maneuver, optional
+        For a rig without winches, the free decay starts when its moving
+        points stop (default: when the reels stop).
 
     Returns
     -------
@@ -363,8 +370,10 @@ def compare_tables(measured, simulated, time_offset="auto", free_decay_start=Non
         ``step`` in s, ``n_samples``); ``tolerances``; ``channels`` (per
         channel: ``status`` ok/missing, the metrics of
         :func:`channel_metrics`, ``rms_tolerance``, ``iso_grade``,
-        ``verdict`` pass/fail/missing, or ``reason``); ``peaks`` (the paper's
-        section 4 table beside ours); ``pitch_rate``; ``reels_stop``;
+        ``verdict`` pass/fail/missing, or ``reason``); ``preset`` (what the
+        report draws); for the paper's preset ``peaks`` (the paper's
+        section 4 table beside ours), ``pitch_rate`` and
+        ``spreader_bar_x_offset``; ``reels_stop``;
         ``free_decay`` (per channel, ``measured``/``simulated`` results of
         :func:`free_decay` and their ``difference``); ``summary``.
 
@@ -376,7 +385,8 @@ def compare_tables(measured, simulated, time_offset="auto", free_decay_start=Non
     """
     check_table(measured, "measured table")
     check_table(simulated, "simulated table")
-    usable, missing = channel_status(measured, simulated)
+    preset = comparison_preset(rig, measured)
+    usable, missing = channel_status(measured, simulated, preset.channels)
     common = [c for c in usable + list(missing) if c in measured.columns and c in simulated.columns]
     if not common:
         raise ValueError("measured and simulated tables have no trajectory channel in common")
@@ -398,12 +408,14 @@ def compare_tables(measured, simulated, time_offset="auto", free_decay_start=Non
     # shown (peak table, plots) for the side that has them.
     present = [c for c in usable + list(missing) if c in measured.columns or c in simulated.columns]
     time, meas, sim = align_tables(measured, simulated, applied, channels=present)
-    channels = _channel_entries(time, meas, sim, usable, missing)
+    channels = _channel_entries(time, meas, sim, usable, missing, preset)
     if not any(e["status"] == "ok" for e in channels.values()):
         raise ValueError("no channel has 3 or more samples where both tables are finite in their common time")
 
     if free_decay_start is None:
         t_stop, method = reels_stop_time(measured, simulated, applied)
+        if t_stop is None and maneuver is not None and rig is not None and not rig.winches:
+            t_stop, method = maneuver_stop_time(maneuver), "when the maneuver's moving points stop"
     else:
         t_stop, method = float(free_decay_start), "given"
     reels = {"time": t_stop, "method": method}
@@ -414,7 +426,7 @@ def compare_tables(measured, simulated, time_offset="auto", free_decay_start=Non
         decay = {}
         reels["reason"] = "the reels stop too close to the end of the common record"
     else:
-        decay = _free_decay(time, meas, sim, t_stop)
+        decay = _free_decay(time, meas, sim, t_stop, preset.decay_channels)
 
     verdicts = [e["verdict"] for e in channels.values()]
     out = {
@@ -422,14 +434,11 @@ def compare_tables(measured, simulated, time_offset="auto", free_decay_start=Non
         "time_offset": offset,
         "time_base": {"start": float(time[0]), "end": float(time[-1]),
                       "step": float(time[1] - time[0]), "n_samples": int(time.size)},
-        "tolerances": {k: dict(v) for k, v in TOLERANCES.items()},
+        "tolerances": preset.tolerances,
         "iso_grades": {"excellent": 0.94, "good": 0.80, "fair": 0.58, "verdict_needs": ISO_GOOD,
                        "applies_when_range_exceeds_tolerances": ISO_MIN_RANGE},
         "channels": channels,
-        "peaks": _peak_table(time, meas, sim),
-        "paper_source": PAPER_SOURCE,
-        "pitch_rate": _pitch_rate_note(meas, sim),
-        "spreader_bar_x_offset": _spreader_offset(meas, sim),
+        "preset": preset.as_json(),
         "reels_stop": reels,
         "free_decay": decay,
         "free_decay_summary": _decay_summary(decay),
@@ -440,8 +449,11 @@ def compare_tables(measured, simulated, time_offset="auto", free_decay_start=Non
             "n_missing": verdicts.count("missing"),
         },
     }
+    if preset.name == "paper":
+        out.update(peaks=_peak_table(time, meas, sim), paper_source=PAPER_SOURCE,
+                   pitch_rate=_pitch_rate_note(meas, sim), spreader_bar_x_offset=_spreader_offset(meas, sim))
     if study is not None:
-        out["discretization_study"] = _study_summary(time, meas, study)
+        out["discretization_study"] = _study_summary(time, meas, study, preset.study_channel)
     return out
 
 

@@ -126,7 +126,7 @@ def _source_data(source, table, markers, ropes):
                       for k, v in (ropes or {}).items()}}
 
 
-def _source_messages(fm, source, data, color, channels, origin_ns):
+def _source_messages(fm, source, data, color, channels, origin_ns, sizes):
     """Yield (log_time_ns, channel, message) for one source, in time order, from ``origin_ns``.
 
     ``fm`` is ``foxglove.messages``; ``channels`` maps ``transforms``,
@@ -166,7 +166,7 @@ def _source_messages(fm, source, data, color, channels, origin_ns):
                 transforms.append(fm.FrameTransform(timestamp=stamp, parent_frame_id=WORLD_FRAME, child_frame_id=eid,
                                                     translation=vec(pos),
                                                     rotation=fm.Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])))
-                cube = fm.CubePrimitive(pose=pose(pos, q), size=vec(BODY_SIZE.get(body, _SMALL)), color=rgba(0.8))
+                cube = fm.CubePrimitive(pose=pose(pos, q), size=vec(sizes.get(body, _SMALL)), color=rgba(0.8))
                 entities.append(fm.SceneEntity(timestamp=stamp, frame_id=WORLD_FRAME, id=eid, cubes=[cube]))
             else:  # orientation unknown (e.g. a two-marker body): a sphere claims none
                 sphere = fm.SpherePrimitive(pose=pose(pos, (0.0, 0.0, 0.0, 1.0)), size=vec(_SMALL), color=rgba(0.8))
@@ -190,7 +190,7 @@ def _source_messages(fm, source, data, color, channels, origin_ns):
                                                          data=seen.astype("<f8").tobytes())
 
 
-def write_results(path, tables, markers=None, ropes=None, chunk_size=CHUNK_SIZE, start_ns=None):
+def write_results(path, tables, markers=None, ropes=None, chunk_size=CHUNK_SIZE, start_ns=None, body_sizes=None):
     """Write trajectory tables (and markers, ropes) as a Foxglove-ready MCAP, atomically.
 
     Parameters
@@ -212,6 +212,9 @@ def write_results(path, tables, markers=None, ropes=None, chunk_size=CHUNK_SIZE,
         When the recording started (ns since the Unix epoch): a table's time
         t is logged at ``start_ns + t``. The current time when None (the
         start is not known); the metadata says which.
+    body_sizes : dict of str -> (3,), optional
+        Each body's box (m, the rig's ``size``); default the paper's bucket,
+        every other body drawn small.
 
     Returns
     -------
@@ -233,6 +236,7 @@ def write_results(path, tables, markers=None, ropes=None, chunk_size=CHUNK_SIZE,
               for i, s in enumerate(sources)}
     data = {s: _source_data(s, tables[s], (markers or {}).get(s), rope_sets.get(s))
             for s in sources}
+    sizes = BODY_SIZE if body_sizes is None else {k: tuple(float(x) for x in v) for k, v in body_sizes.items()}
 
     known = start_ns is not None
     if known and not (isinstance(start_ns, (int, np.integer)) and 0 <= start_ns < 2**63 - 10**15):
@@ -263,7 +267,7 @@ def write_results(path, tables, markers=None, ropes=None, chunk_size=CHUNK_SIZE,
                         "scene": fc.SceneUpdateChannel(f"/{s}/scene", context=context)}
             if data[s]["markers"] is not None:
                 channels["markers"] = fc.PointCloudChannel(f"/{s}/markers", context=context)
-            streams.append(_source_messages(fm, s, data[s], colors[s], channels, origin))
+            streams.append(_source_messages(fm, s, data[s], colors[s], channels, origin, sizes))
         # Sources interleave in log-time order so that players stream them together.
         for ns, channel, message in heapq.merge(*streams, key=lambda m: m[0]):
             channel.log(message, log_time=ns)

@@ -22,8 +22,7 @@ from matplotlib.figure import Figure
 
 from ..capture import atomic_file
 from ._align import align_tables
-from ._compare import FREE_DECAY_CHANNELS, TOLERANCES, channel_kind
-from ._paper import DIG_PEAKS, FIGURES
+from ._compare import channel_kind
 from ._report_figures import ERROR_UNITS, discretization_page, figure_pages, free_decay_page
 
 __all__ = ["write_report", "report_pdf", "REPORT_STYLE"]
@@ -201,11 +200,14 @@ def _summary_lines(metrics, sources):
         f"{s['n_fail']} outside, {s['n_missing']} missing.",
         "",
     ]
-    lines += _peak_lines(metrics)
-    lines += ["", "Per-channel verdict for the paper's figures (all channels on the next page)",
+    if "peaks" in metrics:
+        lines += _peak_lines(metrics)
+    paper = metrics["preset"]["name"] == "paper"
+    lines += ["", f"Per-channel verdict for the {'paper' + chr(39) + 's' if paper else 'report' + chr(39) + 's'} "
+              "figures (all channels on the next page)",
               f"{'Fig':<5}{'Channel':<21}{'RMS error':<13}{'Tolerance':<12}{'ISO rating':<19}"
               f"{'S&G C':<8}{'Theil U':<8}Verdict"]
-    for label, channel, _, _ in FIGURES:
+    for label, channel, _, _ in metrics["preset"]["figures"]:
         lines.append(_verdict_row(label, channel, metrics["channels"].get(channel)))
     lines += [
         "* ISO rating shown but not counted: the measured channel moves less than "
@@ -214,7 +216,7 @@ def _summary_lines(metrics, sources):
         "Tolerances (a channel passes when RMS error <= tolerance and, where it counts, ISO rating >= "
         f"{metrics['iso_grades']['verdict_needs']:.2f})",
     ]
-    for kind, tol in TOLERANCES.items():
+    for kind, tol in metrics["tolerances"].items():
         scale, unit = ERROR_UNITS[kind]
         lines.append(f"  {kind:<12} RMS <= {tol['rms'] * scale:.3g} {unit}: {tol['reason']}")
     lines.append(
@@ -289,7 +291,7 @@ def _decay_lines(metrics):
         "",
         f"{'Channel':<21}{'Side':<11}{'f (Hz)':<9}{'zeta':<8}{'Amplitude':<13}Envelope (confidence)",
     ]
-    for channel in FREE_DECAY_CHANNELS:
+    for channel in metrics["preset"]["decay_channels"]:
         entry = decay.get(channel)
         if entry is None:
             continue
@@ -342,14 +344,17 @@ def write_report(path, measured, simulated, metrics, study=None, sources=None):
     sources : dict, optional
         Labels printed on the summary page, e.g. ``{"measured": "a.csv"}``.
     """
-    figure_channels = [ch for _, ch, _, _ in FIGURES] + list(DIG_PEAKS)
+    figure_channels = [ch for _, ch, _, _ in metrics["preset"]["figures"]]
+    figure_channels += [row["channel"] for row in metrics.get("peaks", ())]
     channels = list(dict.fromkeys(
         c for c in figure_channels + list(metrics["free_decay"])
         if c in measured.columns or c in simulated.columns
     ))
     time, meas, sim = align_tables(measured, simulated, metrics["time_offset"]["applied"], channels=channels)
+    machine = metrics["preset"]["machine"]
+    title = ("Dragline validation" if metrics["preset"]["name"] == "paper" else f"Validation of {machine}")
     with report_pdf(path, "dragline comparison report") as pdf:
-        text_pages(pdf, "Dragline validation: measured vs predicted motion", _summary_lines(metrics, sources))
+        text_pages(pdf, f"{title}: measured vs predicted motion", _summary_lines(metrics, sources))
         text_pages(pdf, "All channels", _channel_lines(metrics), size=6.5)
         figure_pages(pdf, time, meas, sim, metrics, PAGE_SIZE)
         text_pages(pdf, "Free decay after the reels stop", _decay_lines(metrics), size=6.5)

@@ -15,7 +15,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ._compare import channel_kind
-from ._paper import FIG21_CAPTION, FIGURES
+from ._paper import FIG21_CAPTION
 
 __all__ = ["figure_pages", "free_decay_page", "discretization_page", "PLOT_UNITS", "ERROR_UNITS"]
 
@@ -122,11 +122,12 @@ def _one_figure(fig, spec_main, spec_resid, time, meas, sim, metrics, label, cha
 
 def figure_pages(pdf, time, meas, sim, metrics, page_size):
     """Figs. 8-20, two per page, each with its residual strip and metrics."""
-    for k in range(0, len(FIGURES), 2):
+    figures = metrics["preset"]["figures"]
+    for k in range(0, len(figures), 2):
         fig = Figure(figsize=page_size)
         grid = fig.add_gridspec(5, 1, height_ratios=[3.0, 1.1, 0.9, 3.0, 1.1], hspace=0.12,
                                 left=0.11, right=0.95, top=0.93, bottom=0.09)
-        for j, spec in enumerate(FIGURES[k : k + 2]):
+        for j, spec in enumerate(figures[k : k + 2]):
             label, channel, caption, ylabel = spec
             _one_figure(fig, grid[3 * j], grid[3 * j + 1], time, meas, sim, metrics,
                         label, channel, caption, ylabel)
@@ -195,7 +196,7 @@ def free_decay_page(pdf, time, meas, sim, metrics, page_size):
     if not metrics["free_decay"]:
         return
     fig = Figure(figsize=page_size)
-    panels = ("bucket.pitch", "bucket.z", "spreader_bar.pitch", "hoist_cluster.pitch")
+    panels = metrics["preset"]["decay_panels"]
     grid = fig.add_gridspec(len(panels), 1, hspace=0.45, left=0.11, right=0.95, top=0.94, bottom=0.06)
     for i, channel in enumerate(panels):
         _decay_panel(fig.add_subplot(grid[i]), time, meas, sim, metrics, channel)
@@ -205,64 +206,72 @@ def free_decay_page(pdf, time, meas, sim, metrics, page_size):
 # -- Fig. 21 ---------------------------------------------------------------
 
 
-def _study_panel(ax, time, m, study, summary, metrics, t_from=None):
+def _study_panel(ax, time, m, study, summary, metrics, channel, t_from=None):
+    scale, unit = PLOT_UNITS[channel_kind(channel)]
+    escale, eunit = ERROR_UNITS[channel_kind(channel)]
     if m is not None:
-        ax.plot(time, m * DEG, **MEASURED_STYLE)
+        ax.plot(time, m * scale, **MEASURED_STYLE)
     for level, run in study.items():
         if run.get("error"):
             continue
-        rms = summary.get(level, {}).get("bucket_pitch_rms_error")
-        rms_text = "" if rms is None else f" (RMS {rms * DEG:.2f} deg)"
-        ax.plot(np.asarray(run["table"]["time"], float), np.asarray(run["table"]["bucket.pitch"], float) * DEG,
+        rms = summary.get(level, {}).get("rms_error")
+        rms_text = "" if rms is None else f" (RMS {rms * escale:.2f} {eunit})"
+        ax.plot(np.asarray(run["table"]["time"], float), np.asarray(run["table"][channel], float) * scale,
                 color=LEVEL_COLORS.get(level), linewidth=0.9, linestyle="--", label=f"Predicted, {level}{rms_text}")
     _reels_line(ax, metrics)
     ax.set_xlim(time[0] if t_from is None else t_from, time[-1])
     ax.set_xlabel("Time (s)")
-    ax.set_ylabel("Pitch angle (deg)")
+    ax.set_ylabel(f"{channel} ({unit})")
 
 
 def discretization_page(pdf, time, meas, study, metrics, page_size):
-    """Fig. 21: bucket pitch at each discretization level against the measurement.
+    """Fig. 21: the study's channel (the dragline's bucket pitch) at each discretization level against the
+    measurement.
 
     The upper panel is the whole record like the paper's figure; the lower
     one zooms into the free swing after the reels stop, where the levels
     differ. A level whose integration failed is listed with its error.
     """
+    channel = metrics["preset"]["study_channel"]
+    scale, _ = PLOT_UNITS[channel_kind(channel)]
+    escale, eunit = ERROR_UNITS[channel_kind(channel)]
     fig = Figure(figsize=page_size)
     grid = fig.add_gridspec(3, 1, height_ratios=[3.0, 2.2, 1.0], hspace=0.3,
                             left=0.11, right=0.95, top=0.93, bottom=0.05)
     summary = (metrics.get("discretization_study") or {}).get("levels", {})
-    m = _series(meas, "bucket.pitch")
+    m = _series(meas, channel)
     ax = fig.add_subplot(grid[0])
-    _study_panel(ax, time, m, study, summary, metrics)
+    _study_panel(ax, time, m, study, summary, metrics, channel)
     ax.legend(loc="best")
-    ax.set_title(f"Fig. 21. {FIG21_CAPTION}", fontsize=8.5, loc="left")
+    caption = FIG21_CAPTION if metrics["preset"]["name"] == "paper" else (
+        f"Measured and predicted {channel} vs. time at each discretization level.")
+    ax.set_title(f"Fig. {'21' if metrics['preset']['name'] == 'paper' else 'D'}. {caption}", fontsize=8.5, loc="left")
     if m is None:
-        ax.text(0.5, 0.5, "Measured bucket pitch: MISSING", transform=ax.transAxes, ha="center",
+        ax.text(0.5, 0.5, f"Measured {channel}: MISSING", transform=ax.transAxes, ha="center",
                 color="tab:red", fontsize=9, fontweight="bold")
     t_stop = metrics["reels_stop"]["time"]
     if t_stop is not None and t_stop < time[-1]:
         axz = fig.add_subplot(grid[1])
-        _study_panel(axz, time, m, study, summary, metrics, t_from=max(time[0], t_stop - 0.5))
+        _study_panel(axz, time, m, study, summary, metrics, channel, t_from=max(time[0], t_stop - 0.5))
         sel = time >= t_stop - 0.5
-        values = [m[sel] * DEG] if m is not None else []
+        values = [m[sel] * scale] if m is not None else []
         values += [np.interp(time[sel], np.asarray(r["table"]["time"], float),
-                             np.asarray(r["table"]["bucket.pitch"], float)) * DEG
+                             np.asarray(r["table"][channel], float)) * scale
                    for r in study.values() if not r.get("error")]
         finite = np.concatenate(values)[np.isfinite(np.concatenate(values))] if values else np.array([])
         if finite.size:
             pad = 0.05 * (np.ptp(finite) or 1.0)
             axz.set_ylim(finite.min() - pad, finite.max() + pad)
         axz.set_title("Detail: the free swing after the reels stop", fontsize=8, loc="left")
-    lines = [f"{'Level':<10}{'States':<9}{'Bucket pitch RMS error':<25}Status"]
+    lines = [f"{'Level':<10}{'States':<9}{channel + ' RMS error':<25}Status"]
     for level, run in study.items():
         info = summary.get(level, {})
         if run.get("error"):
             lines.append(f"{level:<10}{'-':<9}{'-':<25}FAILED: {run['error']}")
             continue
-        rms = info.get("bucket_pitch_rms_error")
+        rms = info.get("rms_error")
         lines.append(f"{level:<10}{str(run.get('n_state', '-')):<9}"
-                     f"{'-' if rms is None else f'{rms * DEG:.2f} deg':<25}ok")
+                     f"{'-' if rms is None else f'{rms * escale:.2f} {eunit}':<25}ok")
     y = 0.15
     fig.text(0.06, y + 0.015, "RMS error against the measurement over the common time base; "
              "states = the model's state count.", fontsize=7.5)

@@ -22,6 +22,8 @@ def add_parser(sub):
     p.add_argument("--realism", action="store_true",
                    help="discovery: truth rigs drawn within the rig's tolerances, simulated finer than the "
                         "diagnosis, with out-of-menu physics among the cases")
+    p.add_argument("--rig", metavar="NAME", help="discovery --realism: another built-in machine's cases "
+                                                  "(pendulum, slung_load, gantry_crane; default the dragline)")
     p.add_argument("--workers", type=int, default=2, help="discovery, diagnosis: parallel processes")
     p.add_argument("--session", metavar="DIR",
                    help="diagnosis: the session to diagnose (default: the sample session's recipe, synthesised first)")

@@ -45,9 +45,11 @@ def add_parser(sub):
                    help="start of the free decay (s, simulation clock; default: when the reels stop)")
     p.add_argument("--discretization-study", action="store_true",
                    help="also simulate the maneuver at the four discretization levels (Fig. 21; ~30 s)")
-    p.add_argument("--rig", metavar="FILE", help="rig TOML for the study (default: the built-in rig)")
-    p.add_argument("--maneuver", default="dig", metavar="dig|FILE.csv",
-                   help="maneuver for the study: the paper's dig maneuver (default) or a reel-table CSV")
+    p.add_argument("--rig", metavar="NAME|FILE", help="the machine: its channels, tolerances and figures, and the "
+                                                     "study's rig (default: the built-in dragline)")
+    p.add_argument("--maneuver", default=None, metavar="dig|FILE.csv",
+                   help="the maneuver (the study's, and for a rig without winches when its points stop): "
+                        "default the rig's own (the dragline's: the paper's dig)")
     p.add_argument("--physics", action="append", default=[], metavar="NAME[:PARAM=VALUE,...]",
                    help="mechanism switched on in the study's simulations (repeatable)")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
@@ -78,9 +80,10 @@ def run(args):
     simulated = read_trajectory_table(args.simulated, "simulated")
 
     study = None
+    rig = rig_from_args(args)
+    maneuver = maneuver_from_args(args, rig)
     if args.discretization_study:
-        rig = rig_from_args(args)
-        maneuver, physics = maneuver_from_args(args, rig), physics_from_args(args)
+        physics = physics_from_args(args)
         t = np.asarray(simulated["time"], float)
         rate = round(1.0 / float(np.median(np.diff(t))), 6)
         duration = float(t[-1]) - float(maneuver.time[0])
@@ -91,7 +94,7 @@ def run(args):
         study = discretization_study(rig, maneuver, physics, duration=duration, rate_hz=rate, workers=2)
 
     metrics = compare_tables(measured, simulated, time_offset=offset, free_decay_start=args.free_decay_start,
-                             max_offset=args.max_offset, study=study)
+                             max_offset=args.max_offset, study=study, rig=rig, maneuver=maneuver)
     if args.json:
         write_json(args.json, metrics)
     if args.report:

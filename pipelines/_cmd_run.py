@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dragline.capture import json_text, resolve_recording
 
-from ._options import add_between_option, between_from_args, number
+from ._options import BUILT_IN_RIGS, add_between_option, between_from_args, number
 
 
 def add_parser(sub):
@@ -14,6 +14,9 @@ def add_parser(sub):
     p.add_argument("source", nargs="?", metavar="SESSION_DIR|capture.mcap|MARKERS.csv|.c3d|.trc",
                    help="a capture to process (default: the built-in synthetic session)")
     p.add_argument("--out", default="dragline-out", metavar="OUT_DIR", help="output directory (default ./dragline-out)")
+    p.add_argument("--rig", metavar="NAME|FILE",
+                   help=f"the machine: a built-in one ({', '.join(BUILT_IN_RIGS)}) or a rig TOML file; default "
+                        "the config's, else the dragline")
     p.add_argument("--maneuver", metavar="dig|FILE.csv", help="reel table (default: the session's own)")
     p.add_argument("--config", metavar="FILE.toml", help="stage options (see the README's Configuration)")
     p.add_argument("--seed", type=number("nonnegative", integer=True, maximum=2**32 - 1), default=None,
@@ -40,6 +43,8 @@ def run(args):
     maneuver = None
     if args.maneuver:
         maneuver = dig_maneuver() if args.maneuver == "dig" else read_maneuver_csv(args.maneuver)
+    if getattr(args, "rig", None):
+        config["simulate"]["rig"] = args.rig
     seed = args.seed if args.seed is not None else int(config["run"]["seed"])
     study = config["run"]["study"] and not args.no_study
     config["run"]["diagnose"] = config["run"]["diagnose"] and not getattr(args, "no_diagnose", False)
@@ -58,8 +63,9 @@ def run(args):
               f"{channels.get('n_fail')} outside, {channels.get('n_missing')} missing")
     ratio = summary["comparison"].get("damping_ratio_measured_over_model")
     if ratio:
-        print(f"free decay after the reels stop: the measurement damps {ratio:.1f}x faster than the model "
-              "(median damping-ratio ratio over the channels)")
+        how = f"{ratio:.1f}x faster than the model" if ratio < 100 else "far faster than the model, which barely damps"
+        print(f"free decay after the reels stop: the measurement damps {how} "
+              f"(median damping-ratio ratio over the channels: {ratio:.3g})")
     found = summary.get("diagnosis")
     if found:
         line = f"diagnosis: {found['verdict']}"

@@ -173,6 +173,7 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config, between=None):
     from dragline.compare import compare_tables, discretization_study, write_report, write_results
     from dragline.reconstruct import reconstruct_marker_file, reconstruct_session
     from dragline.simulate import (
+        default_maneuver,
         dig_maneuver,
         load_rig,
         read_maneuver_csv,
@@ -182,7 +183,6 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config, between=None):
 
     sim, rec = config["simulate"], config["reconstruct"]
     rig = load_rig(sim["rig"])
-    _check_run_rig(rig)
     if maneuver is None and sim["maneuver"] is not None:
         maneuver = dig_maneuver() if sim["maneuver"] == "dig" else read_maneuver_csv(sim["maneuver"])
     options = {"method": rec["method"], "smoothing": rec["smoothing"], "max_gap": int(rec["max_gap"])}
@@ -193,7 +193,7 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config, between=None):
         files["session"] = str(tmp / "session")
         files["truth"] = str(tmp / "truth")
     elif (recording := resolve_recording(source)).kind == "markers":
-        maneuver = maneuver or dig_maneuver()
+        maneuver = maneuver or default_maneuver(rig)
         measured, _ = stage("reconstruct the marker file", reconstruct_marker_file, recording.file, rig,
                             between=between, **options)
         session = None
@@ -238,7 +238,7 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config, between=None):
 
     studied = stage("discretization study", discretization_study, rig, maneuver, duration=duration,
                     workers=2) if study else None
-    metrics = stage("compare", compare_tables, measured, simulated, study=studied)
+    metrics = stage("compare", compare_tables, measured, simulated, study=studied, rig=rig, maneuver=maneuver)
     write_json(tmp / "metrics.json", metrics)
     files["metrics"] = str(tmp / "metrics.json")
     stage("write the report", write_report, tmp / "report.pdf", measured, simulated, metrics, study=studied,
@@ -263,54 +263,46 @@ def _run_into(source, tmp, seed, maneuver, study, stage, config, between=None):
         files["diagnosis_report"] = str(tmp / "diagnosis.pdf")
         summary["diagnosis"] = _verdict(found.doc)
 
-    ropes = {"simulated/" + r: result.rope_nodes(r) for r in ("hoist_rope", "drag_rope", "dump_rope")}
+    ropes = {"simulated/" + r: result.rope_nodes(r) for r in rig.ropes}
     markers = {"measured": points} if points is not None else None
     start_ns = None if session is None else session.recorded_ns
     stage("write results.mcap", write_results, tmp / "results.mcap", {"measured": measured, "simulated": simulated},
-          markers=markers, ropes=ropes, start_ns=start_ns)
+          markers=markers, ropes=ropes, start_ns=start_ns,
+          body_sizes={name: body.size for name, body in rig.bodies.items()})
     files["results"] = str(tmp / "results.mcap")
     return summary
 
 
-def _check_run_rig(rig):
-    """ValueError unless the rig has the built-in rig's bodies and winches: the comparison, its report
-    and the results MCAP still read them by name (``dragline simulate``, ``synth``, ``reconstruct`` and
-    ``diagnose`` take any rig)."""
-    from dragline.simulate import load_rig
-
-    built_in = load_rig()
-    missing = [name for name in (*built_in.bodies, *built_in.winches) if name not in (*rig.bodies, *rig.winches)]
-    if missing:
-        raise ValueError(f"{rig.source}: dragline run needs the built-in dragline's bodies and winches (this rig "
-                         f"lacks {', '.join(missing)}); for another machine run dragline synth, reconstruct "
-                         "and diagnose with --rig")
-
-
 def _builtin_session(tmp, seed, rig):
     import numpy as np
-    from dragline.lab import default_lab_cameras, synthesize_session, write_session_dir, write_truth
+    from dragline.lab import lab_for_rig, synthesize_session, write_session_dir, write_truth
     from dragline.simulate import (
         apply_parameters,
-        dig_maneuver,
+        default_maneuver,
         draw_parameters,
+        marker_positions,
         parse_physics,
         simulate,
     )
 
-    maneuver = dig_maneuver()
-    hidden = [parse_physics(BUILTIN_HIDDEN_PHYSICS)]
+    # The rig's own trial (the dragline's: the dig) with the mechanism its file hides ([demo]).
+    demo = rig.demo or {"physics": BUILTIN_HIDDEN_PHYSICS, "duration": BUILTIN_DURATION_S}
+    maneuver = default_maneuver(rig)
+    hidden = [parse_physics(demo["physics"])]
     coords = draw_parameters(rig.tolerances, np.random.default_rng(BUILTIN_RIG_SEED + seed))
     lab_rig, lab_maneuver = apply_parameters(rig, maneuver, rig.tolerances, coords)
     truth_run = simulate(lab_rig, lab_maneuver, BUILTIN_TRUTH_DISCRETIZATION, physics=hidden,
-                         duration=BUILTIN_DURATION_S, rate_hz=200.0)
+                         duration=demo["duration"], rate_hz=200.0)
+    lab = lab_for_rig(rig, marker_positions(truth_run)[1], seed)
     # Filmed now: the results are dated from this moment, as a lab's from its recording.
-    session, truth = synthesize_session(truth_run, default_lab_cameras(seed), seed=seed,
+    session, truth = synthesize_session(truth_run, lab.cameras, seed=seed,
                                         metadata={"generator": "dragline run", "rig": rig.name},
-                                        recorded_ns=time.time_ns())
+                                        recorded_ns=time.time_ns(), wand_volume=lab.wand_volume,
+                                        lframe=lab.lframe, wand_length=lab.wand_length)
     write_session_dir(tmp / "session", session, maneuver)
     (tmp / "truth").mkdir()
     write_truth(tmp / "truth", truth, {"physics": [{"name": m.name, "parameters": dict(m.parameters)} for m in hidden],
-                                       "seed": seed, "duration_s": BUILTIN_DURATION_S,
+                                       "seed": seed, "duration_s": demo["duration"],
                                        "discretization": BUILTIN_TRUTH_DISCRETIZATION,
                                        "rig_parameters": [{"parameter": p.name, "nominal": p.nominal,
                                                            "value": p.value(x), "shift_in_tolerances": x / p.tolerance}

@@ -133,7 +133,18 @@ class Report(_Strict):
     decay_channels: list[Annotated[str, Field(min_length=1)]] = Field(
         default_factory=list, description="the diagnosis's free-decay table, `<entity>.<quantity>`")
     overlay_channels: list[Annotated[str, Field(min_length=1)]] = Field(
-        default_factory=list, description="the diagnosis report's measured-against-model pages")
+        default_factory=list, description="the reports' measured-against-model pages")
+    preset: Optional[Literal["paper"]] = Field(
+        None, description="`paper`: the dragline study's comparison (its tolerances, peak table, Figs. 8-21); "
+                          "otherwise the comparison is built from the rig's own channels and sizes")
+
+
+class Demo(_Strict):
+    """What `dragline run` films when it is given no recording: a mechanism hidden from the model."""
+
+    physics: Annotated[str, Field(min_length=1)] = Field(
+        description="the hidden mechanism, as `--physics` writes it (`aero_drag:cd=1.5`)")
+    duration: float = Field(12.0, gt=0, le=600, allow_inf_nan=False, description="seconds filmed")
 
 
 class RigFile(_Strict):
@@ -151,6 +162,7 @@ class RigFile(_Strict):
                                                                      "or a built-in generator's name")
     rough_pose: Optional[RoughPose] = Field(None, description="where the statics start, below")
     report: Optional[Report] = Field(None, description="the reports' channels, below")
+    demo: Optional[Demo] = Field(None, description="the synthetic trial `dragline run` films, below")
     lab: Literal["built-in", "volume"] = Field("volume", description="the synthetic lab that films it: the "
                                                "built-in one placed for the dig, or six cameras about its markers' volume")
     release: dict[str, Release] = Field(default_factory=dict, description="the rig's own trial starts from a "
@@ -181,6 +193,6 @@ def rig_markdown():
     header = ["| key | type | default | allowed | meaning |", "|---|---|---|---|---|"]
     blocks = [header + fields_markdown(RigFile)]
     for model, prefix in ((Body, "bodies.NAME."), (Rope, "ropes.NAME."), (Winch, "winches.NAME."), (Discretization, "discretization."),
-                          (RoughPose, "rough_pose."), (Release, "release.BODY."), (Report, "report.")):
+                          (RoughPose, "rough_pose."), (Release, "release.BODY."), (Report, "report."), (Demo, "demo.")):
         blocks.append(header + fields_markdown(model, prefix))
     return "\n\n".join("\n".join(b) for b in blocks) + "\n"

@@ -174,7 +174,9 @@ def apply_parameters(rig, maneuver, parameters, coordinates):
     Returns
     -------
     (Rig, Maneuver)
-        New objects; the inputs are not modified.
+        New objects; the inputs are not modified. A release (a held pose)
+        moves with the fixed points and mass centres (``_release_moved``):
+        the lab holds the body where the machine truly hangs.
     """
     from ._maneuver import Maneuver
 
@@ -202,8 +204,8 @@ def apply_parameters(rig, maneuver, parameters, coordinates):
                 fixed[t] = xyz
             else:
                 lengths[t] = lengths[t] + value
-    return (dataclasses.replace(rig, bodies=bodies, ropes=ropes, fixed_points=fixed),
-            Maneuver(maneuver.time, lengths, dict(maneuver.points)))
+    moved = dataclasses.replace(rig, bodies=bodies, ropes=ropes, fixed_points=fixed)
+    return _release_moved(rig, moved), Maneuver(maneuver.time, lengths, dict(maneuver.points))
 
 
 def draw_parameters(parameters, rng, spread=1.0, limit=2.0):
@@ -215,3 +217,31 @@ def draw_parameters(parameters, rng, spread=1.0, limit=2.0):
     """
     z = np.clip(rng.normal(size=len(parameters)), -limit, limit)
     return np.array([spread * p.tolerance * zi for p, zi in zip(parameters, z)])
+
+
+def _release_moved(rig, drawn):
+    """``drawn`` (``rig`` with parameters moved) with its release moved as its fixed points and mass
+    centres were.
+
+    A lab lets a body go from where the machine truly hangs: the wire taut
+    at the angle it meant, whatever the pivot's true height or where the
+    body's mass centre truly sits. Holding the nominal pose under a pivot
+    drawn a few millimetres away would leave the wire slack (no static pose
+    to start from) or stretched far beyond its weight. Each held body keeps
+    its points (its rope's eye) where the nominal hold had them, relative to
+    the fixed points' mean shift.
+    """
+    from ._kinematics import body_to_inertial
+
+    if not rig.release:
+        return drawn
+    shift = np.zeros(3)
+    if rig.fixed_points:
+        shift = np.mean([np.asarray(drawn.fixed_points[k], float) - np.asarray(rig.fixed_points[k], float)
+                         for k in rig.fixed_points], axis=0)
+    release = {}
+    for body, pose in rig.release.items():
+        turn = body_to_inertial(*np.asarray(pose["angles"], float))
+        cg_shift = np.asarray(drawn.bodies[body].cg_body, float) - np.asarray(rig.bodies[body].cg_body, float)
+        release[body] = dict(pose, position=np.asarray(pose["position"], float) + shift + turn @ cg_shift)
+    return dataclasses.replace(drawn, release=release)

@@ -117,3 +117,21 @@ def test_a_candidate_beyond_the_threshold_only_above_the_resolved_band_is_not_na
     # Named when its evidence holds below the cutoff (significant).
     swing = dict(ringing, significant=True, unresolved=False, resolved_improvement=2.96 * THRESHOLD)
     assert decide([swing], THRESHOLD, [], [])[0] == "rope_bending_damping"
+
+
+def test_a_candidate_shaped_like_a_parameter_change_is_unexplained_only_if_the_tolerance_could_make_it():
+    # Air drag on a pendulum's bob is shaped like a change of its mass (drag decelerates as cd / m):
+    # cosine 0.96. A mass weighed to 0.5 % would need 158 tolerances to make it: no alternative.
+    from dragline.compare.diagnose._decide import CONFOUNDED
+    from dragline.compare.diagnose._updating import BOUND_TOLERANCES
+
+    def best(needed):
+        h = _hypothesis("aero_drag", 1e4, 1.4, 1.02)
+        h["nuisance_correlation"] = [{"parameter": "bodies.ball.mass", "correlation": -(CONFOUNDED + 0.01),
+                                      "tolerances_needed": needed}]
+        return h
+
+    verdict, reason = decide([best(158.0)], THRESHOLD, [], [])
+    assert verdict == "aero_drag", reason
+    verdict, reason = decide([best(0.5 * BOUND_TOLERANCES)], THRESHOLD, [], [])
+    assert verdict == "unexplained" and "bodies.ball.mass" in reason

@@ -94,3 +94,33 @@ def test_the_weakest_realistic_magnitudes_move_the_bucket_beyond_the_models_own_
     below = [(name, value) for name, value, *_ in REALISTIC_LIMIT_CASES
              if name == "rope_bending_damping" and value < min(REALISTIC_MAGNITUDES[name])]
     assert below and all(effect(name, value) < 2.0 * own_error for name, value in below[:1])
+
+
+def test_every_machine_gets_twenty_cases_with_its_own_candidates_and_no_physics_controls():
+    from dragline.benchmarks._machine_cases import MACHINE_MAGNITUDES, MIN_CASES, MIN_NONE, machine_cases
+
+    seen = set()
+    for rig in ("pendulum", "slung_load", "gantry_crane"):
+        cases = machine_cases(rig, seed=3)
+        assert len(cases) >= MIN_CASES and sum(c[0] is None for c in cases) >= MIN_NONE
+        assert all(c[3] == "realistic" and c[4] == rig for c in cases)
+        seeds = [c[2] for c in cases]
+        assert len(set(seeds)) == len(seeds)
+        seen |= {c[0] for c in cases}
+        for name, value, *_ in cases:
+            if name in MECHANISMS:
+                lo, hi = MECHANISMS[name].range
+                assert lo < value < hi
+    # Chain-link friction only where there are chains (the crane's slings); no pulley on these machines.
+    assert "chain_link_friction" in seen and "pulley_friction" not in seen
+    assert set(MACHINE_MAGNITUDES) <= seen
+
+
+def test_a_machine_case_is_filmed_in_its_own_lab_and_diagnosed_from_its_session_alone():
+    from dragline.benchmarks._discovery import _run_case
+
+    out = _run_case("aero_drag", 1.7, 99001, "realistic", None, False, "pendulum")
+    assert out["rig"] == "pendulum" and out["verdict"] == "aero_drag", out["reason"]
+    assert out["fitted"] == pytest.approx(1.7, rel=0.5)
+    assert set(out["calibration"]) <= {p.name for p in __import__("dragline.simulate", fromlist=["load_rig"])
+                                        .load_rig("pendulum").tolerances}

@@ -7,6 +7,7 @@ Plain rules over the scored hypotheses (``_hypotheses``), in the order
 from __future__ import annotations
 
 from ._band import RESOLVED_HZ
+from ._updating import BOUND_TOLERANCES
 
 __all__ = ["decide", "leftover_share", "model_error_share", "EXPLAINED_MIN", "ADEQUATE_RMS", "LEFTOVER_SHARE",
            "CONFOUNDED", "MODEL_ERROR_SHARE", "MODEL_ERROR_FULL"]
@@ -111,8 +112,12 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
        held-out improvements closer than the threshold: "unexplained"
        (indistinguishable). A runner-up at an end of its range is no rival.
     4b. The best candidate's signature correlates with a rig parameter's
-       sensitivity beyond ``CONFOUNDED``: "unexplained" (it cannot be told
-       apart from a parameter change within tolerance).
+       sensitivity beyond ``CONFOUNDED`` and that parameter could make it
+       within ``BOUND_TOLERANCES`` of its tolerance (the updating's own
+       bound): "unexplained" (it cannot be told apart from a parameter
+       change within tolerance). Air drag on a pendulum's bob looks like a
+       change of the bob's mass (drag decelerates as cd / m), but a mass
+       weighed to 0.5 % cannot make a drag of cd 1.
     5. A structured mismatch remains and the best explains less than
        ``EXPLAINED_MIN`` of the structured mismatch: "unexplained".
     5b. The best leaves a held-out RMS residual (``rms_after``) beyond
@@ -173,7 +178,8 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
                                f"(held-out improvements {best['improvement']:.1f} and "
                                f"{rivals[0]['improvement']:.1f}, closer than the noise threshold {threshold:.1f}); "
                                "the data cannot tell them apart")
-    confounded = [e for e in best.get("nuisance_correlation") or () if abs(e["correlation"]) > CONFOUNDED]
+    confounded = [e for e in best.get("nuisance_correlation") or () if abs(e["correlation"]) > CONFOUNDED
+                  and e.get("tolerances_needed", 0.0) <= BOUND_TOLERANCES]
     if confounded:
         e = confounded[0]
         return "unexplained", (f"{best['name']} would explain the mismatch, but its signature is a change of "

@@ -28,7 +28,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...simulate import make_mechanism, simulate
+from ...simulate import make_mechanism, rope_channels, simulate
 from .._align import MAX_OFFSET, check_table, maneuver_stop_time, reels_stop_time
 from .._compare import channel_kind
 from ._band import RESOLVED_MIN, band_improvement
@@ -148,16 +148,21 @@ def _clock(measured, nominal_table, rig, maneuver):
 
     A rig with winches: the offset from the recorded rope lengths against
     the model's, which must follow the maneuver (``check_maneuver``), the
-    stop from the winches. Without: the recording starts with the maneuver
-    (a release, or a point's measured track that starts the recording), and
-    the maneuver stops when its last point does.
+    stop from the winches. Without winches, or without a rope length the
+    recording measured (a crane's vertical hoist rope, which the markers'
+    plane fit cannot measure): the recording starts with the maneuver (a
+    release, or a point's measured track that starts the recording), and the
+    maneuver stops when its last winch or point does; the JSON says so.
     """
     t0 = float(maneuver.time[0])
-    if not rig.winches:
+    measured_ropes = [c for c in rope_channels(rig) if c in measured.columns
+                      and np.isfinite(np.asarray(measured[c], float)).any()]
+    if not rig.winches or not measured_ropes:
+        why = "the rig has no winch" if not rig.winches else "the recording measures no rope length"
         offset = float(np.asarray(measured["time"], float)[0]) - t0
         estimate = {"offset": offset, "estimated": True, "ropes": {},
-                    "method": "the recording's first sample is the maneuver's start (the rig has no winch)"}
-        return offset, estimate, maneuver_stop_time(maneuver), "the maneuver table's last change (no winch)"
+                    "method": f"the recording's first sample is the maneuver's start ({why})"}
+        return offset, estimate, maneuver_stop_time(maneuver), f"the maneuver table's last change ({why})"
     estimate = align_with_maneuver(measured, nominal_table, rig)
     check_maneuver(measured, estimate, rig, rope_bias_allowance(rig, nominal_table))
     offset = float(estimate["offset"])
@@ -340,7 +345,8 @@ def score_hypotheses(state):
             fitted_series[c["name"]] = rec.values - res
         else:
             frac, sig_match, band = 0.0, 0.0, {"resolved": 0.0, "resolved_share": 0.0}
-        confounders = (nuisance_correlation(problem, s["sim"] - state.base_sim, update)
+        confounders = (nuisance_correlation(problem, s["sim"] - state.base_sim, update,
+                                            tolerances=[p.tolerance for p in state.ctx["parameters"]])
                        if update is not None and value > 0 else [])
         rms_ch = {}
         for j, ch in enumerate(channels):

@@ -58,7 +58,7 @@ from ...simulate import (
 from .._compare import channel_kind
 from ._hypotheses import _grid_job, _init, _pool, channels_on
 
-__all__ = ["OFFSET_PRIOR", "update_model", "joint_refit", "model_error", "finer_discretization",
+__all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "update_model", "joint_refit", "model_error", "finer_discretization",
            "nuisance_correlation", "mark_model_error"]
 
 # What a constant offset between a recorded channel and the model may
@@ -687,8 +687,8 @@ def _objective_at(problem, sim, coords, tol, offset_sd, errs):
     return chi2 + prior, chi2, a, H_inv
 
 
-def nuisance_correlation(problem, signature, update, most=3):
-    """How far a mechanism's signature looks like a rig parameter's change.
+def nuisance_correlation(problem, signature, update, most=3, tolerances=None):
+    """How far a mechanism's signature looks like a rig parameter's change, and how large a change.
 
     Parameters
     ----------
@@ -697,23 +697,33 @@ def nuisance_correlation(problem, signature, update, most=3):
         The mechanism's fitted minus the updated model's simulation.
     update : dict
         ``update_model``'s result.
+    tolerances : sequence of float, optional
+        Each parameter's tolerance in its coordinate (``RigParameter.tolerance``).
 
     Returns
     -------
     list of dict
         The ``most`` largest |cosines| between the signature and each
         parameter's sensitivity, in the chi2 metric with per-channel offsets
-        removed: ``parameter``, ``correlation``. 1 means the recording
-        cannot tell the mechanism from that parameter change.
+        removed: ``parameter``, ``correlation`` (1: the recording cannot
+        tell the mechanism's shape from that parameter change) and, with
+        ``tolerances``, ``tolerances_needed``: how many tolerances of that
+        parameter the signature's projection on it would take (a change the
+        updating could never make, beyond ``BOUND_TOLERANCES``, is no
+        alternative, however alike the shapes).
     """
     g = _centred(problem, signature)
     gn = math.sqrt(float((g * g).sum()))
     out = []
-    for p, s in zip(update["block"]["parameters"], update["sensitivities"]):
+    tol = [None] * len(update["sensitivities"]) if tolerances is None else list(tolerances)
+    for p, s, t in zip(update["block"]["parameters"], update["sensitivities"], tol):
         j = _centred(problem, s)
         jn = math.sqrt(float((j * j).sum()))
         if gn > 0 and jn > 0:
-            out.append({"parameter": p["parameter"], "correlation": float((g * j).sum()) / (gn * jn)})
+            entry = {"parameter": p["parameter"], "correlation": float((g * j).sum()) / (gn * jn)}
+            if t is not None and t > 0:
+                entry["tolerances_needed"] = abs(float((g * j).sum()) / jn**2) / float(t)
+            out.append(entry)
     out.sort(key=lambda e: -abs(e["correlation"]))
     return out[:most]
 
