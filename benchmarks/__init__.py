@@ -14,7 +14,11 @@ measure what a user's code would get.
 - ``bench_diagnosis`` (``diagnosis_summary_lines``): one diagnosis of the
   sample session, timed end to end as the command runs it
 - ``bench_discovery`` (``discovery_command``, ``discovery_summary_lines``):
-  blind sessions diagnosed and scored against the physics hidden in them
+  blind sessions diagnosed and scored against the physics hidden in them,
+  on the dragline or (``--realism --rig NAME``, ``_machine_cases``) another
+  built-in machine
+- ``bench_real`` (``real_command``): real slung-load flights diagnosed one
+  by one, each flight's update predicting the others
 
 ``bench_executor.py`` (a script) measures the executors' scheduling cost.
 """
@@ -36,6 +40,8 @@ _EXPORTS = {
     "bench_discovery": ("_discovery", "bench_discovery"),
     "discovery_command": ("_discovery", "bench_command"),
     "discovery_summary_lines": ("_discovery", "summary_lines"),
+    "bench_real": ("_real", "bench_real"),
+    "real_command": ("_real", "bench_command"),
 }
 __all__ = sorted(_EXPORTS)
 

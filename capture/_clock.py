@@ -30,11 +30,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["recover_clock"]
+__all__ = ["recover_clock", "unusable_rows"]
 
 # Rows each side of an interval for its velocity: 0.1-0.2 s at 30-60 Hz, far below a pendulum's period.
 HALF_WINDOW = 3
 ITERATIONS = 2
+# Beyond twice the local step, a row's distance from its neighbours' parabola must exceed this (m) to be a
+# glitch: ten times a motion-capture system's millimetre, where nothing moves.
+GLITCH_FLOOR = 0.01
 
 
 def recover_clock(samples, mean_step, *, noise=None):
@@ -55,14 +58,16 @@ def recover_clock(samples, mean_step, *, noise=None):
     Returns
     -------
     ndarray (n,)
-        Increasing times from 0, whose mean step is ``mean_step``.
+        Increasing times from 0, whose mean step is ``mean_step``; NaN for
+        a row that cannot be timed (``unusable_rows``: a repeat of the row
+        before, or a tracking glitch), which a reader then drops.
     """
     values = np.asarray(samples, float)
     n = values.shape[0]
-    finite = np.all(np.isfinite(values), axis=1)
-    usable = np.flatnonzero(finite)
+    bad = unusable_rows(values)
+    usable = np.flatnonzero(~bad)
     if usable.size < 2 * HALF_WINDOW + 2:
-        return np.arange(n) * float(mean_step)
+        return np.where(bad, np.nan, np.arange(n) * float(mean_step))
     x = values[usable]
     frames_between = np.diff(usable)
     measured, precision = _motion_intervals(x, frames_between * mean_step, noise)
@@ -71,7 +76,41 @@ def recover_clock(samples, mean_step, *, noise=None):
     jitter = _latency_spread(measured[sure] - mean_step * frames_between[sure], mean_step)
     times = _times_on_frames(grid, measured, precision, jitter)
     times = usable[0] * mean_step + np.r_[0.0, np.cumsum(np.maximum(np.diff(times), 0.1 * mean_step))]
-    return np.interp(np.arange(n), usable, times)
+    out = np.full(n, np.nan)
+    out[usable] = times
+    return out
+
+
+def unusable_rows(samples):
+    """Rows no instant can be given to (bool, (n,)): non-finite ones, exact repeats of the row before
+    (a logger writing a stale sample again), and tracking glitches.
+
+    A glitch (a rigid body swapped or lost for one frame: a jump of tens of
+    centimetres to metres in real logs) is a row further from the parabola
+    through its four neighbours than twice the typical step between rows
+    there, plus ``GLITCH_FLOOR``: a row's latency is less than an interval,
+    so its timing can move it along its path by less than one step; the
+    floor stands for the tracker's noise where nothing moves. Only the worst
+    row of a run is the glitch (it throws its neighbours' parabolas off too).
+    """
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    values = np.asarray(samples, float)
+    n = values.shape[0]
+    bad = ~np.all(np.isfinite(values), axis=1)
+    bad[1:] |= np.all(values[1:] == values[:-1], axis=1) & ~bad[:-1]
+    if n < 8:
+        return bad
+    x = np.where(bad[:, None], np.nan, values)
+    # The parabola through rows k-2, k-1, k+1, k+2 at row k: (-x[k-2] + 4 x[k-1] + 4 x[k+1] - x[k+2]) / 6.
+    miss = np.full(n, np.nan)
+    miss[2:-2] = np.linalg.norm(x[2:-2] - (-x[:-4] + 4 * x[1:-3] + 4 * x[3:-1] - x[4:]) / 6.0, axis=1)
+    steps = np.linalg.norm(np.diff(values, axis=0), axis=1)
+    typical = np.nanmedian(sliding_window_view(np.pad(steps, (3, 3), mode="edge"), 6), axis=1)[:n]
+    with np.errstate(invalid="ignore"):
+        glitch = miss > 2.0 * typical + GLITCH_FLOOR
+        worst = miss >= np.fmax(np.r_[miss[1:], -np.inf], np.r_[-np.inf, miss[:-1]])
+    return bad | (glitch & worst)
 
 
 def _motion_intervals(x, prior, noise):

@@ -30,6 +30,8 @@ def add_parser(sub):
     p.add_argument("--run-session", action="store_true",
                    help="diagnosis: the session `dragline run --seed SEED` builds (made first) instead of the sample")
     add_scheduler_option(p)
+    p.add_argument("--data", metavar="DIR",
+                   help="real: the flights' folder (the Stormlord repository's data_combined_system)")
     p.add_argument("--keep-diagnoses", metavar="DIR",
                    help="discovery: keep every case's diagnosis.json in DIR (case<seed>.json)")
 
@@ -77,8 +79,14 @@ def _discovery(args):
     return discovery_command(args)
 
 
+def _real(args):
+    from dragline.benchmarks import real_command
+
+    return real_command(args)
+
+
 BENCHES = {"simulate": _simulate, "capture": _capture, "reconstruct": _reconstruct, "triangulation": _triangulation,
-           "diagnosis": _diagnosis, "discovery": _discovery}
+           "diagnosis": _diagnosis, "discovery": _discovery, "real": _real}
 
 
 def run(args):

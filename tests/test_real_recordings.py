@@ -81,8 +81,9 @@ def test_a_real_flight_reads_through_its_mapping_with_the_load_hanging_below_the
     load = table[["load.x", "load.y", "load.z"]].to_numpy()
     # K points down: the load is below the drone by the rope and its fittings, about 3.16 m.
     below = load[:, 2] - drone[:, 2]
-    assert np.all(below > 2.5)
-    assert np.median(np.linalg.norm(load - drone, axis=1)) == pytest.approx(3.16, abs=0.05)
+    seen = np.isfinite(below)  # a row the clock could not time leaves the body missing there
+    assert seen.mean() > 0.95 and np.all(below[seen] > 2.5)
+    assert np.median(np.linalg.norm(load - drone, axis=1)[seen]) == pytest.approx(3.16, abs=0.05)
     assert poses.report["rows"] == 900
     assert 29.0 < poses.report["rate_hz"] < 31.0
 
@@ -99,8 +100,11 @@ def test_on_the_real_flights_the_recovered_clock_smooths_the_motion(excerpt):
         a = np.diff(v, axis=0) / (0.5 * (t[2:] - t[:-2]))[:, None]
         return np.sqrt(np.mean(np.diff(a, axis=0) ** 2))
 
-    even = np.arange(x.shape[0]) * mean_step
-    assert roughness(recover_clock(x, mean_step)) < roughness(even) / 2
+    recovered = recover_clock(x, mean_step)
+    timed = np.isfinite(recovered)  # a repeated row or a glitch has no instant
+    x = x[timed]
+    even = np.arange(raw.shape[0])[timed] * mean_step
+    assert roughness(recovered[timed]) < roughness(even) / 2
 
 
 def test_a_rope_length_tolerance_moves_the_hanging_load_by_the_change():
@@ -122,3 +126,69 @@ def test_a_length_tolerance_on_a_winch_rope_is_refused(tmp_path):
                     text.replace("[tolerances]", '[tolerances]\n"ropes.hoist_rope.length" = { absolute = 0.1 }', 1))
     with pytest.raises(ValueError, match="winch"):
         load_rig(path)
+
+
+def _flights_folder(tmp_path):
+    """The excerpts laid out as the repository's data_combined_system holds its flights."""
+    for flight in ("rosbag_15", "rosbag_19"):
+        folder = tmp_path / flight
+        folder.mkdir()
+        (folder / "dataset.csv").write_bytes((DATA / f"{flight}_rows_0_899.csv").read_bytes())
+        (folder / "metadata.yaml").write_bytes((DATA / f"{flight}_metadata.yaml").read_bytes())
+    return tmp_path
+
+
+def test_a_flights_row_rate_is_its_camera_topic_count_over_the_bags_duration():
+    from dragline.benchmarks._real import row_rate
+
+    # metadata.yaml of flight 15: 6962 /payload/world_pose messages in 235175024111 ns.
+    assert row_rate(DATA / "rosbag_15_metadata.yaml") == pytest.approx(6962 / 235.175024111, rel=1e-12)
+    with pytest.raises(ValueError, match="no_such_topic"):
+        row_rate(DATA / "rosbag_15_metadata.yaml", topic="/no_such_topic")
+
+
+def test_bench_real_diagnoses_each_flight_and_predicts_each_with_the_others_update(tmp_path):
+    from dragline.benchmarks import bench_real
+
+    report = bench_real(_flights_folder(tmp_path))
+    assert [f["flight"] for f in report["flights"]] == ["rosbag_15", "rosbag_19"]
+    assert all(f["verdict"] in ("none", "unexplained", "aero_drag", "rope_bending_damping") for f in report["flights"])
+    pairs = {(p["held_out"], p["updated_on"]) for p in report["predictions"]}
+    assert pairs == {("rosbag_15", "rosbag_19"), ("rosbag_19", "rosbag_15")}
+    # Both rigs predict a flight within the swing's size (1.5 m): the error is a model's, not a blow-up.
+    assert all(0.0 < p["nominal_m"] < 1.5 and 0.0 < p["updated_m"] < 1.5 for p in report["predictions"])
+    assert report["parameters"]["ropes.rope.length"]["n"] == 2
+
+
+def test_rows_that_cannot_be_timed_are_repeats_and_glitches_and_nothing_else():
+    from dragline.capture._clock import unusable_rows
+
+    truth, rows = _jittered_rows(seed=5, seconds=30.0)
+    assert not unusable_rows(rows).any()  # latencies and noise alone never make a row unusable
+    spoiled = rows.copy()
+    spoiled[200, 3:] += [0.0, 0.5, 0.0]       # the load's rigid body lost for one frame: 0.5 m off
+    spoiled[400] = spoiled[399]               # the logger wrote the same sample twice
+    assert np.flatnonzero(unusable_rows(spoiled)).tolist() == [200, 400]
+    t = recover_clock(spoiled, truth[-1] / (truth.size - 1))
+    assert np.isnan(t[[200, 400]]).all() and np.isfinite(np.delete(t, [200, 400])).all()
+
+
+def test_a_short_hole_in_a_points_track_is_bridged_and_a_bodys_is_not(tmp_path):
+    import pandas as pd
+
+    t = np.arange(0.0, 4.0, 0.01)
+    frame = pd.DataFrame({"t": t, "bx": np.sin(t), "by": 0 * t, "bz": 1.0 + 0 * t,
+                          "px": np.sin(t), "py": 0 * t, "pz": 4.0 + 0 * t})
+    frame.loc[100:109, ["bx", "by", "bz"]] = np.nan   # 0.1 s without the body
+    frame.loc[200:214, ["px", "py", "pz"]] = np.nan   # 0.15 s without the point
+    path = tmp_path / "take.csv"
+    frame.to_csv(path, index=False)
+    mapping = tmp_path / "map.toml"
+    mapping.write_text('[table]\ntime = "t"\n[bodies.load]\nposition = ["bx", "by", "bz"]\n'
+                       '[points.drone]\nposition = ["px", "py", "pz"]\n')
+    poses = read_tracked_table(path, mapping)
+    assert np.isnan(poses.positions["load"][100:110]).any()          # the body's hole stays missing
+    assert np.isfinite(poses.points["drone"]).all()                   # the point's is bridged
+    # A straight line across 0.16 s of sin t errs by at most 0.16^2 / 8 = 3.2 mm.
+    np.testing.assert_allclose(poses.points["drone"][200:215, 0], np.sin(t[200:215]), atol=3.3e-3)
+    assert poses.report["point_gaps_bridged"] == 1

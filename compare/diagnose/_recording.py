@@ -159,11 +159,13 @@ def _load_tracked(path, mapping, rig, maneuver, note):
 
     bag = str(path).lower().endswith(".mcap")
     poses = (read_tracked_bag if bag else read_tracked_table)(path, mapping)
+    # A mapping is a TOML file, or one built in code (a benchmark's, at a flight's own rate).
+    named = os.fspath(mapping) if isinstance(mapping, (str, os.PathLike)) else "given in code"
     try:
         table, tracked = tracked_trajectory(poses, rig)
     except ValueError as exc:
-        raise ValueError(f"{mapping}: {exc}") from None
-    source = {"input": path, "kind": "ROS 2 bag" if bag else "tracked table", "mapping": os.fspath(mapping),
+        raise ValueError(f"{named}: {exc}") from None
+    source = {"input": path, "kind": "ROS 2 bag" if bag else "tracked table", "mapping": named,
               "tracked": poses.report}
     report = poses.report
     if report["rows_dropped"] or report["gaps"] or report["off_step"]:
