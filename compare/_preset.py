@@ -162,5 +162,5 @@ def _describe(channel):
 def _axis_label(channel):
     from ._compare import channel_kind
 
-    entity, quantity = channel.rsplit(".", 1)
+    quantity = channel.rsplit(".", 1)[1]
     return _AXIS_LABELS[channel_kind(channel)].format(q=quantity.capitalize() if quantity in BODY_QUANTITIES else quantity)

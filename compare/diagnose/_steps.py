@@ -104,6 +104,9 @@ def align_recording(state):
     nominal_run = simulate(rig, maneuver, state.discretization, [], duration=record + MAX_OFFSET, rate_hz=rate)
     nominal_table = nominal_run.table
     offset, estimate, t_stop, stop_method = _clock(measured, nominal_table, rig, maneuver)
+    if rig.winches and not estimate.get("ropes"):
+        _note(state, "the recording measures no rope length: its first sample is taken as the maneuver's "
+                     "start (no clock offset is estimated)")
     t_al = t_meas - offset
     keep = (t_al >= t0 - 1e-9) & (t_al <= float(nominal_run.time[-1]) + 1e-9)
     time = t_al[keep]
