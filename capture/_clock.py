@@ -47,8 +47,8 @@ def recover_clock(samples, mean_step, *, noise=None):
     ----------
     samples : ndarray (n, m)
         Every tracked coordinate in one frame and unit (m), time on the
-        first axis, all sampled at the same instants; NaN rows are
-        skipped and timed by their neighbours.
+        first axis, all sampled at the same instants; a row with a NaN
+        gets no time (NaN), as a repeated or glitched row does.
     mean_step : float
         The mean interval between rows (s), from the log's stated rate.
     noise : float, optional
@@ -58,7 +58,7 @@ def recover_clock(samples, mean_step, *, noise=None):
     Returns
     -------
     ndarray (n,)
-        Increasing times from 0, whose mean step is ``mean_step``; NaN for
+        Increasing times, whose mean step is about ``mean_step``; NaN for
         a row that cannot be timed (``unusable_rows``: a repeat of the row
         before, or a tracking glitch), which a reader then drops.
     """
