@@ -41,7 +41,7 @@ import time
 import numpy as np
 
 from dragline.compare import as_executor, diagnose_path, executor_from, write_diagnosis_json
-from dragline.lab import default_lab_cameras, lab_for_rig, synthesize_session, write_session_dir
+from dragline.lab import lab_for_rig, synthesize_session, write_session_dir
 from dragline.simulate import (
     MECHANISMS,
     apply_parameters,
@@ -222,14 +222,11 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_
         recorded_maneuver = result.model.maneuver
         without = None if name is None else simulate(duration=10.0, rate_hz=200.0)
     effect = {"bucket_mm": 0.0, "bucket_pitch_deg": 0.0} if without is None else _effect_size(result, without)
-    if rig_name is None:
-        session, _ = synthesize_session(result, default_lab_cameras(seed), seed=seed,
-                                        metadata={"generator": "dragline bench discovery"})
-    else:
-        lab = lab_for_rig(machine, marker_positions(result)[1], seed)
-        session, _ = synthesize_session(result, lab.cameras, seed=seed, wand_volume=lab.wand_volume,
-                                        lframe=lab.lframe, wand_length=lab.wand_length,
-                                        metadata={"generator": "dragline bench discovery", "rig": machine.name})
+    # The rig's own lab: the dragline's built-in one, else six cameras about the machine's markers.
+    lab = lab_for_rig(machine, marker_positions(result)[1], seed)
+    session, _ = synthesize_session(result, lab.cameras, seed=seed, wand_volume=lab.wand_volume,
+                                    lframe=lab.lframe, wand_length=lab.wand_length,
+                                    metadata={"generator": "dragline bench discovery", "rig": machine.name})
     write_session_dir(folder, session, recorded_maneuver)
     made = time.perf_counter() - started
     out = {"truth": name or "none", "value": value, "seed": seed, "world": world, "synth_seconds": made,

@@ -19,6 +19,7 @@ several flights (issue 36).
 
 from __future__ import annotations
 
+import itertools
 import re
 import tempfile
 import time
@@ -65,7 +66,7 @@ def row_rate(metadata, topic="/payload/world_pose"):
 def _trial(csv, rows, folder):
     """The flight's first ``rows`` rows as a file of their own (the log is read as it is, only cut)."""
     with open(csv) as src:
-        lines = [next(src) for _ in range(rows)]
+        lines = list(itertools.islice(src, rows))
     path = Path(folder) / f"{Path(csv).parent.name}.csv"
     path.write_text("".join(lines))
     return path

@@ -21,6 +21,8 @@ __all__ = [
     "SPREADER_BAR_X_OFFSET",
     "FIGURES",
     "FIG21_CAPTION",
+    "DECAY_PANELS",
+    "STUDY_CHANNEL",
 ]
 
 PAPER_SOURCE = (
@@ -105,6 +107,10 @@ FIGURES = (
      "Measured and predicted Z inertial position of drag cluster mass center vs. time.",
      "Z inertial position (m)"),
 )
+
+# The free-decay page's four panels and Fig. 21's channel.
+DECAY_PANELS = ("bucket.pitch", "bucket.z", "spreader_bar.pitch", "hoist_cluster.pitch")
+STUDY_CHANNEL = "bucket.pitch"
 
 FIG21_CAPTION = (
     "Measured and predicted bucket pitch angle vs. time for varying bead discretization."

@@ -82,13 +82,13 @@ def comparison_preset(rig=None, measured=None):
         rate tolerances of a rig that is not the paper's.
     """
     from ._compare import FREE_DECAY_CHANNELS, TOLERANCES
-    from ._paper import FIGURES
+    from ._paper import DECAY_PANELS, FIGURES, STUDY_CHANNEL
 
     if rig is None or rig.report.get("preset") == "paper":
         return ComparisonPreset(
             "paper", "the paper's 1/16-scale dragline" if rig is None else rig.name,
             tuple(trajectory_columns(rig)[1:]), {k: dict(v) for k, v in TOLERANCES.items()}, FREE_DECAY_CHANNELS,
-            ("bucket.pitch", "bucket.z", "spreader_bar.pitch", "hoist_cluster.pitch"), FIGURES, "bucket.pitch")
+            DECAY_PANELS, FIGURES, STUDY_CHANNEL)
     channels = tuple(trajectory_columns(rig)[1:])
     bodies = list(rig.bodies)
     tolerances = _rig_tolerances(rig, measured, bodies)
@@ -120,8 +120,8 @@ def _moving(channels, measured, tolerances):
 def _rig_tolerances(rig, measured, bodies):
     largest = max(float(np.max(rig.bodies[b].size)) for b in bodies)
     position = 0.05 * largest
-    speed = _peak(measured, [f"{b}.{q}" for b in bodies for q in ("vx", "vy", "vz")], norm_of=3)
-    rate = _peak(measured, [f"{b}.{q}" for b in bodies for q in ("p", "q", "r")], norm_of=3)
+    speed = _peak(measured, bodies, ("vx", "vy", "vz"))
+    rate = _peak(measured, bodies, ("p", "q", "r"))
     return {
         "position": {"rms": position, "unit": "m",
                      "reason": f"5 % of the largest body ({largest:g} m), the paper's rule (20 mm of a 0.38 m bucket)"},
@@ -137,13 +137,13 @@ def _rig_tolerances(rig, measured, bodies):
     }
 
 
-def _peak(measured, columns, norm_of):
-    """The largest norm over time of each group of ``norm_of`` measured columns; 0 when none is there."""
+def _peak(measured, bodies, quantities):
+    """The largest norm over time of any body's three ``quantities`` as measured; 0 when none is there."""
     if measured is None:
         return 0.0
     best = 0.0
-    for k in range(0, len(columns), norm_of):
-        group = columns[k:k + norm_of]
+    for body in bodies:
+        group = [f"{body}.{q}" for q in quantities]
         if not all(c in measured.columns for c in group):
             continue
         values = np.linalg.norm(measured[group].to_numpy(float), axis=1)

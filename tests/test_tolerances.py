@@ -115,3 +115,20 @@ def test_a_softer_rope_stretches_more_under_the_same_load(static_pair):
     stretch_soft = moved["hoist_rope.length"] - moved["hoist_rope.reel_length"]
     assert stretch > 0.05
     assert stretch_soft / stretch == pytest.approx(1 / 0.9, rel=0.03)
+
+
+def test_a_release_moves_with_the_drawn_pivot_and_mass_centre():
+    # The lab holds the ball where the wire is taut: drawn 3 mm lower pivot and a mass centre 2 mm off
+    # the ball's centre, the held mass centre moves by both, so the eye keeps its distance to the pivot.
+    import numpy as np
+    from dragline.simulate import apply_parameters, body_to_inertial, default_maneuver, load_rig, simulate
+
+    rig = load_rig("pendulum")
+    moved = {"fixed_points.pivot.z": 0.003, "bodies.ball.cg_z": 0.002}
+    coords = [moved.get(p.name, 0.0) for p in rig.tolerances]
+    drawn, maneuver = apply_parameters(rig, default_maneuver(rig), rig.tolerances, coords)
+    pose = rig.release["ball"]
+    turn = body_to_inertial(*pose["angles"])
+    expected = np.asarray(pose["position"]) + [0.0, 0.0, 0.003] + turn @ [0.0, 0.0, 0.002]
+    np.testing.assert_allclose(drawn.release["ball"]["position"], expected, atol=1e-12)
+    assert simulate(drawn, maneuver, duration=0.05).equilibrium_residual < 1e-6  # a taut start exists

@@ -269,6 +269,12 @@ def rope_bias_allowance(rig, nominal_table, sigmas=2.5):
     return out
 
 
+def measured_rope_channels(measured, rig):
+    """The rig's rope-length channels the recording has finite samples of."""
+    return [c for c in rope_channels(rig) if c in measured.columns
+            and np.isfinite(np.asarray(measured[c], float)).any()]
+
+
 def check_maneuver(measured, estimate, rig, bias_allowance=None):
     """Raise ValueError unless the reel table explains the recorded rope lengths.
 
@@ -284,8 +290,7 @@ def check_maneuver(measured, estimate, rig, bias_allowance=None):
         Channel -> further mean offset (m) the rig's tolerances allow
         (``rope_bias_allowance``).
     """
-    ropes = [c for c in rope_channels(rig) if c in measured.columns
-             and np.isfinite(np.asarray(measured[c], float)).any()]
+    ropes = measured_rope_channels(measured, rig)
     if not ropes:
         raise ValueError("the recording has no rope lengths; cannot check it against the maneuver table")
     travel = max(np.nanmax(np.asarray(measured[c], float)) - np.nanmin(np.asarray(measured[c], float)) for c in ropes)
@@ -325,8 +330,7 @@ def align_with_maneuver(measured, nominal_table, rig):
     measured: ring friction or inertia changes its length in ways that would
     pull the offset.
     """
-    ropes = [c for c in rope_channels(rig) if c in measured.columns
-             and np.isfinite(np.asarray(measured[c], float)).any()]
+    ropes = measured_rope_channels(measured, rig)
     free = [c for c in ropes if _rope_kind(rig, c) == "free"]
     use = free or ropes
     if use == ropes:

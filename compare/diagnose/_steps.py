@@ -28,7 +28,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...simulate import make_mechanism, rope_channels, simulate
+from ...simulate import make_mechanism, simulate
 from .._align import MAX_OFFSET, check_table, maneuver_stop_time, reels_stop_time
 from .._compare import channel_kind
 from ._band import RESOLVED_MIN, band_improvement
@@ -50,6 +50,7 @@ from ._recording import (
     align_with_maneuver,
     check_channels,
     check_maneuver,
+    measured_rope_channels,
     moving_channels,
     rope_bias_allowance,
 )
@@ -158,9 +159,7 @@ def _clock(measured, nominal_table, rig, maneuver):
     maneuver stops when its last winch or point does; the JSON says so.
     """
     t0 = float(maneuver.time[0])
-    measured_ropes = [c for c in rope_channels(rig) if c in measured.columns
-                      and np.isfinite(np.asarray(measured[c], float)).any()]
-    if not rig.winches or not measured_ropes:
+    if not rig.winches or not measured_rope_channels(measured, rig):
         why = "the rig has no winch" if not rig.winches else "the recording measures no rope length"
         offset = float(np.asarray(measured["time"], float)[0]) - t0
         estimate = {"offset": offset, "estimated": True, "ropes": {},
