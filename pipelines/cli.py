@@ -29,7 +29,7 @@ class _Parser(argparse.ArgumentParser):
 def build_parser():
     parser = _Parser(
         prog="dragline",
-        description="Check a dynamic model of a rope-rigged dragline against motion capture.",
+        description="Check a dynamic model of a rope-rigged machine against motion capture.",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     handlers = {}

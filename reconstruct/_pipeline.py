@@ -328,19 +328,23 @@ def _rope_markers(rig, rope, col, pts):
 
 
 def _span(rig, rope, frames):
-    """The rope's measured span start (fixed point) and the fixed path before it (m)."""
+    """The rope's measured span start (its last fixed point) and the fixed path before it (m).
+
+    The rope's markers measure it from its last ring (or its start) to its
+    end; a ring on a moving body before that cannot be measured.
+    """
     spec = rig.ropes[rope]
     kind, _, name = spec.start.partition(".")
     if kind != "fixed":
         raise ValueError(f"rope {rope} must start at a fixed point to be measured, starts at {spec.start}")
-    start = _fixed(rig, name, frames)
-    if spec.ring is None:
-        return start, 0.0
-    rkind, _, rname = spec.ring.partition(".")
-    if rkind != "fixed":
-        raise ValueError(f"rope {rope} passes a moving ring {spec.ring}; only fixed rings can be measured")
-    ring = _fixed(rig, rname, frames)
-    return ring, float(np.linalg.norm(ring[0] - start[0]))
+    points = [_fixed(rig, name, frames)]
+    for ring in spec.rings:
+        rkind, _, rname = ring.partition(".")
+        if rkind != "fixed":
+            raise ValueError(f"rope {rope} passes a moving ring {ring}; only fixed rings can be measured")
+        points.append(_fixed(rig, rname, frames))
+    path = sum(float(np.linalg.norm(b[0] - a[0])) for a, b in zip(points[:-1], points[1:]))
+    return points[-1], path
 
 
 # ------------------------------------------------------------------ rates

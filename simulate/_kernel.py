@@ -27,13 +27,17 @@ through a ring. Slack elements carry nothing and their F_m is reset to zero
 (the paper's F = 0 when slack); tension is never negative. ``relax`` = Kv/Cv;
 the dissipation-free model is Ks := Ks + Kv, Kv := 0.
 
-A ring pulley holds rope on two sides, A (start to ring) and B (ring to end),
-each spread evenly over its elements. Its slide coordinate obeys
-  m_s v_s' = mean(T_A) - mean(T_B) + (mechanism terms),
-where each side's mean is of T + T^2 / (2 K), K = Ks + Kv: the generalised
-force -dE/du_A of the elastic energy sum F^2 L_e / (2 K); m_s is the effective mass of the
-rope moving through the ring, rho (L_A + L_B) / 3 (linear velocity profile
-from the ring to the fixed ends), plus any sheave inertia J / r^2.
+A rope reeved through k rings (pulleys, sheaves) has k + 1 spans, each spread
+evenly over its elements; ring j's state u_j is the unstretched rope from the
+rope's start to it, so span j holds u_j - u_(j-1). Ring j's slide coordinate obeys
+  m_s v_j' = mean(T_A) - mean(T_B) + (mechanism terms),
+A the span before it and B the span after, where each span's mean is of
+T + T^2 / (2 K), K = Ks + Kv: the generalised force -dE/du_j of the elastic
+energy sum F^2 L_e / (2 K); m_s is the effective mass of the rope moving
+through the ring, rho L / 3 (a linear velocity profile from the ring to the
+rope's ends; one ring: exact for that profile), plus any sheave inertia
+J / r^2. With several rings the rope's sliding kinetic energy couples them;
+each keeps its own rho L / 3, a constant, so the energy balance stays exact.
 """
 
 from __future__ import annotations
@@ -212,21 +216,36 @@ def _gather_nodes(y, m, T, fpos, fvel, nx, nv, narm, o_part, o_vel, velocities):
 
 
 @njit(cache=True, inline="always")
-def _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring):
+def _span_rest(s, side, y, m, Lseg, dLseg, o_ring):
+    """Unstretched length (m), its rate (m/s) and element count of span ``side`` (1-based) of ring segment s.
+
+    Span j runs from ring j - 1 (the rope's start for j = 1) to ring j (its
+    end after the last ring); ring r's state holds the unstretched rope from
+    the segment's start to it.
+    """
+    r0 = m.seg_ring[s]
+    j = side - 1
+    if j < m.seg_nring[s]:
+        n = m.ring_nelA[r0 + j]
+        hi, dhi = y[o_ring + 2 * (r0 + j)], y[o_ring + 2 * (r0 + j) + 1]
+    else:
+        n = m.ring_nelB[r0 + j - 1]
+        hi, dhi = Lseg[s], dLseg[s]
+    if j == 0:
+        return hi, dhi, n
+    return hi - y[o_ring + 2 * (r0 + j - 1)], dhi - y[o_ring + 2 * (r0 + j - 1) + 1], n
+
+
+@njit(cache=True, inline="always")
+def _element_rest(e, y, m, Lseg, dLseg, o_ring):
     """Rest length L_e (m) and its rate (m/s) of element e."""
-    s = el_seg[e]
-    side = el_side[e]
+    s = m.el_seg[e]
+    side = m.el_side[e]
     if side == 0:
-        n = seg_nel[s]
+        n = m.seg_nel[s]
         return Lseg[s] / n, dLseg[s] / n
-    rg = seg_ring[s]
-    uA = y[o_ring + 2 * rg]
-    vs = y[o_ring + 2 * rg + 1]
-    if side == 1:
-        n = seg_nelA[s]
-        return uA / n, vs / n
-    n = seg_nel[s] - seg_nelA[s]
-    return (Lseg[s] - uA) / n, (dLseg[s] - vs) / n
+    length, rate, n = _span_rest(s, side, y, m, Lseg, dLseg, o_ring)
+    return length / n, rate / n
 
 
 @njit(cache=True, **NO_REFCOUNT)
@@ -267,8 +286,10 @@ def _rhs(t, y, dy, m, work, update):
     seg_reel = m.seg_reel
     seg_reel_off = m.seg_reel_off
     seg_ring = m.seg_ring
+    seg_nring = m.seg_nring
     seg_nel = m.seg_nel
-    seg_nelA = m.seg_nelA
+    ring_nelA = m.ring_nelA
+    ring_nelB = m.ring_nelB
     seg_npart = m.seg_npart
     seg_rho = m.seg_rho
     ring_seg = m.ring_seg
@@ -315,13 +336,11 @@ def _rhs(t, y, dy, m, work, update):
     for s in range(seg_nel.shape[0]):
         n = seg_nel[s]
         rest[s, 0], rest_rate[s, 0] = Lseg[s] / n, dLseg[s] / n
-        rg = seg_ring[s]
-        if rg >= 0:
-            uA, vs = y[o_ring + 2 * rg], y[o_ring + 2 * rg + 1]
-            nA = seg_nelA[s]
-            rest[s, 1], rest_rate[s, 1] = uA / nA, vs / nA
-            rest[s, 2], rest_rate[s, 2] = (Lseg[s] - uA) / (n - nA), (dLseg[s] - vs) / (n - nA)
-        for side in range(3 if rg >= 0 else 1):
+        spans = seg_nring[s] + 1 if seg_ring[s] >= 0 else 0
+        for side in range(1, spans + 1):
+            length, rate, n_span = _span_rest(s, side, y, m, Lseg, dLseg, o_ring)
+            rest[s, side], rest_rate[s, side] = length / n_span, rate / n_span
+        for side in range(spans + 1):
             inv_rest[s, side] = 1.0 / rest[s, side]
     slack_changes = 0.0
     for e in range(E):
@@ -359,10 +378,13 @@ def _rhs(t, y, dy, m, work, update):
                 tension = 0.0
         elif not update:
             dy[o_F + e] = 0.0  # slack: F_m is held at zero by ``project``
-        if side == 1:
-            sumA[seg_ring[s]] += tension + tension * tension / (2.0 * (seg_ks[s] + seg_kv[s]))
-        elif side == 2:
-            sumB[seg_ring[s]] += tension + tension * tension / (2.0 * (seg_ks[s] + seg_kv[s]))
+        if side > 0:
+            # -dE/du of the span's elastic energy: pulls the ring after the span forward, the one before back
+            pull = tension + tension * tension / (2.0 * (seg_ks[s] + seg_kv[s]))
+            if side <= seg_nring[s]:
+                sumA[seg_ring[s] + side - 1] += pull
+            if side >= 2:
+                sumB[seg_ring[s] + side - 2] += pull
         if tension == 0.0:
             continue
         fx, fy, fz = tension * ux, tension * uy, tension * uz
@@ -449,8 +471,8 @@ def _rhs(t, y, dy, m, work, update):
         s = ring_seg[rg]
         vs = y[o_ring + 2 * rg + 1]
         mass = seg_rho[s] * Lseg[s] / 3.0 + ring_added_mass[rg]
-        meanA = sumA[rg] / seg_nelA[s]
-        meanB = sumB[rg] / (seg_nel[s] - seg_nelA[s])
+        meanA = sumA[rg] / ring_nelA[rg]
+        meanB = sumB[rg] / ring_nelB[rg]
         if not update:
             dy[o_ring + 2 * rg] = vs
         dy[o_ring + 2 * rg + 1] = (meanA - meanB - ring_visc[rg] * vs) / mass - relax_damping * vs
@@ -478,12 +500,11 @@ def project(t, y, m, work):
     _segment_lengths(t, m.seg_len0, m.seg_reel, m.seg_reel_off, m.reel_t, m.reel_len, Lseg, dLseg, reel_buf, reel_rate)
     nx = work.nx
     _gather_nodes(y, m, T, fpos, fvel, nx, work.nv, work.narm, o_part, o_vel, False)
-    el_seg, el_side, el_na, el_nb = m.el_seg, m.el_side, m.el_na, m.el_nb
-    seg_ring, seg_nel, seg_nelA = m.seg_ring, m.seg_nel, m.seg_nelA
+    el_na, el_nb = m.el_na, m.el_nb
     for e in range(E):
         if y[o_F + e] == 0.0:
             continue
-        Le, _ = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
+        Le, _ = _element_rest(e, y, m, Lseg, dLseg, o_ring)
         na, nb_ = el_na[e], el_nb[e]
         dx = nx[nb_, 0] - nx[na, 0]
         dyy = nx[nb_, 1] - nx[na, 1]
@@ -570,8 +591,7 @@ def _dissipate_geometry(e, y, m, work, o_F, o_ring):
     Called, not inlined: three inlined copies cost the first run 4-9 s more
     compiling and the step nothing measurable.
     """
-    Le, _ = _element_rest(e, y, m.el_seg, m.el_side, m.seg_ring, m.seg_nel, m.seg_nelA, work.Lseg, work.dLseg,
-                          o_ring)
+    Le, _ = _element_rest(e, y, m, work.Lseg, work.dLseg, o_ring)
     nx, narm = work.nx, work.narm
     na, nb_ = m.el_na[e], m.el_nb[e]
     dx, dyy, dz = nx[nb_, 0] - nx[na, 0], nx[nb_, 1] - nx[na, 1], nx[nb_, 2] - nx[na, 2]
@@ -753,8 +773,8 @@ Work = namedtuple("Work", [
     "narm",  # (body ends, 3) body ends' lever arms (m, inertial axes)
     "eps", "seg_decay", "seg_gain", "step",  # Verlet (rhs_maxwell_update): stretch ratios, per-segment factors, their h
     "slack_changes",  # (1,) elements that turned slack or taut since it was zeroed (rhs_maxwell_update)
-    "rest", "rest_rate", "inv_rest",  # (S, 3) element rest length (m), its rate (m/s) and inverse, per segment
-    # and side (0, ring side A, ring side B)
+    "rest", "rest_rate", "inv_rest",  # (S, spans + 1) element rest length (m), its rate (m/s) and inverse, per
+    # segment and side (0: a segment through no ring; j: the span before its ring j, or after its last)
     "cda_seg",  # (S,) each particle's drag area (m^2) per segment
 ])
 
@@ -769,6 +789,7 @@ def make_work(m):
     F = max(m.point_pos.shape[1], 1)
     nreel = m.reel_len.shape[1]
     nodes = max(P + m.bnode_body.shape[0] + m.point_pos.shape[1], 1)
+    sides = 2 + (int(m.seg_nring.max()) if S else 0)
     return Work(T=np.zeros((nb, 3, 3)), Lseg=np.zeros(S), dLseg=np.zeros(S), reel_buf=np.zeros(nreel),
                 reel_rate=np.zeros(nreel), fb=np.zeros((nb, 3)), mb=np.zeros((nb, 3)),
                 sumA=np.zeros(max(R, 1)), sumB=np.zeros(max(R, 1)), fpos=np.zeros((F, 3)), fvel=np.zeros((F, 3)),
@@ -776,8 +797,8 @@ def make_work(m):
                 el_T=np.zeros(E), el_arm=np.zeros((E, 6)), el_inv_len=np.zeros(E), el_inv_mass=np.zeros((E, 4)), eps=np.zeros(E), seg_decay=np.zeros(S),
                 seg_gain=np.zeros(S), step=np.zeros(1), slack_changes=np.zeros(1),
                 nx=np.zeros((nodes, 3)), nv=np.zeros((nodes, 3)), nf=np.zeros((nodes, 3)),
-                narm=np.zeros((max(m.bnode_body.shape[0], 1), 3)), rest=np.zeros((S, 3)), rest_rate=np.zeros((S, 3)),
-                inv_rest=np.zeros((S, 3)), cda_seg=np.zeros(S))
+                narm=np.zeros((max(m.bnode_body.shape[0], 1), 3)), rest=np.zeros((S, sides)),
+                rest_rate=np.zeros((S, sides)), inv_rest=np.zeros((S, sides)), cda_seg=np.zeros(S))
 
 
 @njit(cache=True, **NO_REFCOUNT)

@@ -94,9 +94,15 @@ class Maneuver:
 
 
 def default_maneuver(rig):
-    """The rig's own maneuver (its file's ``maneuver``): a CSV it names, else a built-in generator's (the dig)."""
+    """The rig's own maneuver (its file's ``maneuver``): a CSV it names, or a built-in generator's (the dig).
+
+    A rig that names none drives nothing when it has no winch (time alone),
+    and runs the dig, as files written for the dragline did, when it has.
+    """
     from ._dig import BUILT_IN_MANEUVERS
 
+    if rig.maneuver is None and not rig.winches:
+        return Maneuver([0.0])
     if rig.maneuver is None or rig.maneuver in BUILT_IN_MANEUVERS:
         return BUILT_IN_MANEUVERS[rig.maneuver or "dig"]()
     return read_maneuver_csv(rig.maneuver)

@@ -44,7 +44,8 @@ class Model:
     arrays: dict
     seg_particles: dict  # segment -> slice into particles
     seg_elements: dict  # segment -> slice into elements
-    seg_ring: dict  # segment -> ring index (rings only)
+    seg_rings: dict  # segment -> its rings' indices in order from its start (segments through rings only)
+    ring_sites: tuple  # each ring's site name
     seg_nodes: dict  # segment -> list of (kind, idx, r_body) along the rope
     physics: tuple = ()
     notes: list = field(default_factory=list)
@@ -104,7 +105,7 @@ class Model:
         if i < self.o_ring:
             return f"rope segment {self.seg_names[self.arrays['el_seg'][i - self.o_force]]}"
         r = (i - self.o_ring) // 2
-        return f"ring pulley of {self.seg_names[self.arrays['ring_seg'][r]]}"
+        return f"ring pulley {self.ring_sites[r]} of {self.seg_names[self.arrays['ring_seg'][r]]}"
 
     # ---- reading records --------------------------------------------------
     def segment_lengths(self, t):
@@ -171,8 +172,8 @@ KERNEL_FIELDS = (
     "part_seg", "el_seg", "el_side",
     "el_ka", "el_ia", "el_ra", "el_kb", "el_ib", "el_rb",
     "seg_ks", "seg_kv", "seg_relax", "seg_len0", "seg_reel", "seg_reel_off",
-    "seg_ring", "seg_nel", "seg_nelA", "seg_npart", "seg_rho",
-    "ring_seg", "ring_added_mass",
+    "seg_ring", "seg_nring", "seg_nel", "seg_npart", "seg_rho",
+    "ring_seg", "ring_nelA", "ring_nelB", "ring_added_mass",
     "reel_t", "reel_len", "point_pos", "relax_damping",
     "body_cda", "seg_cda", "air_density",
     "has_joints", "joint_a", "joint_b", "joint_seg", "seg_bend_c", "seg_link_mu",
@@ -218,7 +219,30 @@ def _ref_position(ref, rig, guess):
     return guess[owner] + rig.bodies[owner].points[point] - rig.bodies[owner].cg_body
 
 
-def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=True, side_split=None):
+def _span_particles(n, path, anchors, rig, guess):
+    """Where a rope's ``n`` particles are cut between the spans of its path: ``cuts[j]`` particles lie before
+    the path's point ``j`` (``cuts[0] = 0``, ``cuts[-1] = n``).
+
+    A span between two fixed points (a winch to its fixed sheave) is one straight massless element. The
+    others share the particles in proportion to their lengths in the rough hanging pose, each at least one
+    while there are enough; fixed for a run.
+    """
+    fixed = [a[0] == KIND_FIXED for a in anchors]
+    free = [not (fixed[j] and fixed[j + 1]) for j in range(len(path) - 1)]
+    span = [np.linalg.norm(_ref_position(path[j + 1], rig, guess) - _ref_position(path[j], rig, guess)) if free[j]
+            else 0.0 for j in range(len(path) - 1)]
+    total = sum(span)
+    least = 1 if n >= sum(free) else 0
+    cuts, done = [0], 0.0
+    for j in range(len(path) - 2):
+        done += span[j]
+        low = cuts[-1] + (least if free[j] else 0)
+        high = n - least * sum(free[j + 1:])
+        cuts.append(int(np.clip(round(n * done / total) if total > 0 else cuts[-1], low, max(low, high))))
+    return cuts + [n]
+
+
+def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=True):
     """Build the kernel arrays for a rig.
 
     Parameters
@@ -233,9 +257,6 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
     dissipation : bool
         False switches the visco-elastic relaxation off (pure springs of
         stiffness Ks + Kv): the conservative model of the energy test.
-    side_split : dict, optional
-        Ring segment -> number of particles on side A. By default split in
-        proportion to the sides' spans in a rough hanging pose.
 
     Returns
     -------
@@ -254,39 +275,28 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
     guess = rough_body_positions(rig, maneuver.lengths_at(maneuver.time[0]))
 
     part_seg, el = [], []
-    seg = {k: [] for k in ("ks", "kv", "relax", "len0", "reel", "reel_off", "ring", "nel", "nelA", "npart", "rho")}
-    ring_seg = []
-    seg_particles, seg_elements, seg_ring, seg_nodes = {}, {}, {}, {}
+    seg = {k: [] for k in ("ks", "kv", "relax", "len0", "reel", "reel_off", "ring", "nring", "nel", "npart", "rho")}
+    ring_seg, ring_nelA, ring_nelB, ring_eA, ring_sites = [], [], [], [], []
+    seg_particles, seg_elements, seg_rings, seg_nodes = {}, {}, {}, {}
     for s, name in enumerate(seg_names):
         spec = rig.ropes[name]
         n = counts[name]
-        start = _resolve(spec.start, rig, fixed_names)
-        end = _resolve(spec.end, rig, fixed_names)
+        path = [spec.start, *spec.rings, spec.end]
+        anchors = [_resolve(ref, rig, fixed_names) for ref in path]
         p0, e0 = len(part_seg), len(el)
-        if spec.ring is None:
-            nA = n
-            chain = [start] + [(KIND_PARTICLE, p0 + i, np.zeros(3)) for i in range(n)] + [end]
-            sides = [0] * (n + 1)
-        else:
-            ring = _resolve(spec.ring, rig, fixed_names)
-            if start[0] == KIND_FIXED and ring[0] == KIND_FIXED:
-                nA = 0  # the fixed reel-to-pulley path: one straight massless element
-            elif side_split and name in side_split:
-                nA = int(side_split[name])
-            else:
-                dA = np.linalg.norm(_ref_position(spec.ring, rig, guess) - _ref_position(spec.start, rig, guess))
-                dB = np.linalg.norm(_ref_position(spec.end, rig, guess) - _ref_position(spec.ring, rig, guess))
-                nA = int(np.clip(round(n * dA / (dA + dB)), 1 if n > 1 else 0, n - 1 if n > 1 else n))
-            chain = (
-                [start]
-                + [(KIND_PARTICLE, p0 + i, np.zeros(3)) for i in range(nA)]
-                + [ring]
-                + [(KIND_PARTICLE, p0 + nA + i, np.zeros(3)) for i in range(n - nA)]
-                + [end]
-            )
-            sides = [1] * (nA + 1) + [2] * (n - nA + 1)
-            seg_ring[name] = len(ring_seg)
-            ring_seg.append(s)
+        cuts = _span_particles(n, path, anchors, rig, guess)
+        chain, sides = [anchors[0]], []
+        for j in range(len(path) - 1):
+            chain += [(KIND_PARTICLE, p0 + i, np.zeros(3)) for i in range(cuts[j], cuts[j + 1])] + [anchors[j + 1]]
+            sides += [j + 1 if spec.rings else 0] * (cuts[j + 1] - cuts[j] + 1)
+        if spec.rings:
+            seg_rings[name] = tuple(range(len(ring_seg), len(ring_seg) + len(spec.rings)))
+            for j, site in enumerate(spec.ring_sites):
+                ring_seg.append(s)
+                ring_sites.append(site)
+                ring_nelA.append(sides.count(j + 1))
+                ring_nelB.append(sides.count(j + 2))
+                ring_eA.append(e0 + sum(sides.count(i) for i in range(1, j + 2)) - 1)
         part_seg += [s] * n
         for (ka, ia, ra), (kb, ib, rb), side in zip(chain[:-1], chain[1:], sides):
             el.append((s, side, ka, ia, ra, kb, ib, rb))
@@ -305,9 +315,9 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         seg["len0"].append(spec.length if spec.winch is None else 0.0)
         seg["reel"].append(-1 if spec.winch is None else list(rig.winches).index(spec.winch))
         seg["reel_off"].append(0.0)
-        seg["ring"].append(seg_ring.get(name, -1))
+        seg["ring"].append(seg_rings[name][0] if spec.rings else -1)
+        seg["nring"].append(len(spec.rings))
         seg["nel"].append(len(sides))
-        seg["nelA"].append(nA + 1 if spec.ring else 0)
         seg["npart"].append(max(n, 1))
         seg["rho"].append(rho)
 
@@ -337,11 +347,13 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         "seg_reel": np.array(seg["reel"], np.int64),
         "seg_reel_off": np.array(seg["reel_off"]),
         "seg_ring": np.array(seg["ring"], np.int64),
+        "seg_nring": np.array(seg["nring"], np.int64),
         "seg_nel": np.array(seg["nel"], np.int64),
-        "seg_nelA": np.array(seg["nelA"], np.int64),
         "seg_npart": np.array(seg["npart"], np.int64),
         "seg_rho": np.array(seg["rho"]),
         "ring_seg": np.array(ring_seg, np.int64),
+        "ring_nelA": np.array(ring_nelA, np.int64),
+        "ring_nelB": np.array(ring_nelB, np.int64),
         "ring_added_mass": np.zeros(len(ring_seg)),
         "reel_t": np.array(maneuver.time, float),
         "reel_len": winch_table(rig, maneuver),
@@ -359,8 +371,8 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         "joint_seg": np.array([j[2] for j in joints], np.int64),
         "seg_bend_c": np.zeros(len(seg_names)),
         "seg_link_mu": np.zeros(len(seg_names)),
-        "ring_eA": np.array([seg_elements[seg_names[s]].start + seg["nelA"][s] - 1 for s in ring_seg], np.int64),
-        "ring_eB": np.array([seg_elements[seg_names[s]].start + seg["nelA"][s] for s in ring_seg], np.int64),
+        "ring_eA": np.array(ring_eA, np.int64),
+        "ring_eB": np.array(ring_eA, np.int64) + 1,
         "ring_mu": np.zeros(len(ring_seg)),
         "has_ring_friction": 0,
         "seg_link_r": np.zeros(len(seg_names)),
@@ -376,7 +388,8 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         arrays=arrays,
         seg_particles=seg_particles,
         seg_elements=seg_elements,
-        seg_ring=seg_ring,
+        seg_rings=seg_rings,
+        ring_sites=tuple(ring_sites),
         seg_nodes=seg_nodes,
         physics=tuple(physics),
     )
@@ -462,7 +475,7 @@ def rough_body_positions(rig, lengths):
         return {name: (np.zeros(3) if b.position is None else b.position) for name, b in rig.bodies.items()}
     hang, hold = rig.ropes[pose.hang], rig.ropes[pose.hold]
     fp = rig.fixed_points
-    ring = fp[hang.ring.partition(".")[2]]
+    ring = fp[hang.rings[0].partition(".")[2]]
     hang_from, hold_from = fp[hang.start.partition(".")[2]], fp[hold.start.partition(".")[2]]
     hang_body, hold_body = hang.end.partition(".")[0], hold.end.partition(".")[0]
     p = np.array(_hanging_block(tuple(map(float, ring)), tuple(map(float, hang_from)), tuple(map(float, hold_from)),

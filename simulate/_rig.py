@@ -52,8 +52,9 @@ class RopeSpec:
     ----------
     start, end : str
         ``"<body>.<point>"`` or ``"fixed.<point>"``.
-    ring : str or None
-        Ring pulley the rope passes through, same notation.
+    rings : tuple of str
+        The ring pulleys or sheaves the rope passes through, in order from
+        ``start``, same notation (reeving).
     winch : str or None
         The winch whose maneuver column (``<winch>_length``) sets the
         rope's total unstretched length from ``start``.
@@ -72,8 +73,8 @@ class RopeSpec:
     kind : str
         ``rope``, ``cable`` or ``chain`` (``_rig_schema.ROPE_KINDS``): the
         mechanisms choose their segments by it, never by the name.
-    ring_name : str or None
-        The ring's site name, when not its point's name.
+    ring_names : tuple of str
+        The rings' site names in the same order; empty: each one's point's name.
     """
 
     name: str
@@ -83,20 +84,18 @@ class RopeSpec:
     static_stiffness: float
     viscous_stiffness: float
     viscous_damping: float
-    ring: str | None = None
+    rings: tuple = ()
     winch: str | None = None
     length: float | None = None
     marker_distances: tuple = ()
     diameter: float = 0.01
     kind: str = "rope"
-    ring_name: str | None = None
+    ring_names: tuple = ()
 
     @property
-    def ring_site(self):
-        """The ring's site name (``ring_name``, else its point's name); None without a ring."""
-        if self.ring is None:
-            return None
-        return self.ring_name or self.ring.partition(".")[2]
+    def ring_sites(self):
+        """Each ring's site name (its ``ring_names`` entry, else its point's name), in order from ``start``."""
+        return self.ring_names or tuple(ring.partition(".")[2] for ring in self.rings)
 
 
 @dataclass(frozen=True)
@@ -257,8 +256,8 @@ def _rig_from_doc(doc, source):
             name=name,
             start=r["start"],
             end=r["end"],
-            ring=r.get("ring"),
-            ring_name=r.get("ring_name"),
+            rings=tuple(r.get("rings", ())) or ((r["ring"],) if r.get("ring") else ()),
+            ring_names=tuple(r.get("ring_names", ())) or ((r["ring_name"],) if r.get("ring_name") else ()),
             winch=r.get("reel"),
             length=r.get("length"),
             weight_per_length=float(r["weight_per_length"]),
@@ -269,7 +268,7 @@ def _rig_from_doc(doc, source):
             diameter=float(r.get("diameter", 0.01)),
             kind=r.get("kind", "rope"),
         )
-        for ref in (spec.start, spec.end) + ((spec.ring,) if spec.ring else ()):
+        for ref in (spec.start, spec.end) + spec.rings:
             _check_ref(ref, bodies, fixed, f"{source}: rope {name!r}")
         if spec.winch is not None:  # a file written before [winches]
             if spec.winch in winches:
@@ -339,19 +338,19 @@ def _check_sites(ropes, source):
     """Ring site names are unique, and never the name of a rope (a mechanism's ``pulley`` takes either)."""
     seen = {}
     for name, spec in ropes.items():
-        site = spec.ring_site
-        if site is None:
-            continue
-        if site in seen and seen[site] != spec.ring:
-            raise ValueError(f"{source}: ring name {site!r} of rope {name!r} names another ring too")
-        if site in ropes and site != name:
-            raise ValueError(f"{source}: ring name {site!r} of rope {name!r} is also a rope's name")
-        seen[site] = spec.ring
+        for site, ring in zip(spec.ring_sites, spec.rings):
+            if site in seen and seen[site] != ring:
+                raise ValueError(f"{source}: ring name {site!r} of rope {name!r} names another ring too")
+            if site in ropes and site != name:
+                raise ValueError(f"{source}: ring name {site!r} of rope {name!r} is also a rope's name")
+            seen[site] = ring
+        if len(set(spec.rings)) < len(spec.rings):
+            raise ValueError(f"{source}: rope {name!r} passes the same ring twice")
 
 
 def _check_held(bodies, ropes, source):
     """Every body hangs from a rope: one that nothing holds falls forever."""
-    held = {ref.partition(".")[0] for spec in ropes.values() for ref in (spec.start, spec.end, spec.ring or "")}
+    held = {ref.partition(".")[0] for spec in ropes.values() for ref in (spec.start, spec.end) + spec.rings}
     for name in bodies:
         if name not in held:
             raise ValueError(f"{source}: body {name!r} is held by no rope")
@@ -390,8 +389,9 @@ def _rough_pose(table, bodies, ropes, source):
         if rope is None or rope.winch is None or not rope.start.startswith("fixed."):
             raise ValueError(f"{source}: rough_pose.{key} = {table[key]!r}: expected a rope on a winch from a "
                              "fixed point")
-    if ropes[table["hang"]].ring is None or not ropes[table["hang"]].ring.startswith("fixed."):
-        raise ValueError(f"{source}: rough_pose.hang = {table['hang']!r}: expected a rope through a fixed ring")
+    hang_rings = ropes[table["hang"]].rings
+    if len(hang_rings) != 1 or not hang_rings[0].startswith("fixed."):
+        raise ValueError(f"{source}: rough_pose.hang = {table['hang']!r}: expected a rope through one fixed ring")
     offsets = {}
     for name, off in table["offsets"].items():
         if name not in bodies:

@@ -30,6 +30,8 @@ MAX_PARTICLES = 500
 # Shorter than this, a rope's elements set a time step of nanoseconds.
 MIN_ROPE_LENGTH = 1e-3  # m
 MAX_COORDINATE = 1e4  # m
+# More sheaves than a 64-part reeving has is a typo (the largest offshore hook blocks run about 20 parts).
+MAX_RINGS = 64
 
 _Coordinate = Annotated[float, Field(allow_inf_nan=False, ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
 _Vec3 = Annotated[list[_Coordinate], Field(min_length=3, max_length=3)]
@@ -64,8 +66,13 @@ class Rope(_Strict):
     kind: Literal[ROPE_KINDS] = Field("rope", description="what it is made of; the mechanisms act by kind")
     start: str = Field(min_length=1, description='"body.point" or "fixed.point"')
     end: str = Field(min_length=1, description='"body.point" or "fixed.point"')
-    ring: Optional[str] = Field(None, min_length=1, description="ring pulley it passes through")
+    ring: Optional[str] = Field(None, min_length=1, description="ring pulley it passes through (one ring)")
     ring_name: Optional[_Name] = Field(None, description="the ring's site name (default: its point's name)")
+    rings: list[Annotated[str, Field(min_length=1)]] = Field(
+        default_factory=list, max_length=MAX_RINGS,
+        description="the rings or sheaves it passes through, in order from its start (reeving)")
+    ring_names: list[_Name] = Field(default_factory=list, description="their site names, in the same order "
+                                                                     "(default: each one's point's name)")
     reel: Optional[_Name] = Field(None, description="the winch paying it out, in files written before "
                                                     "`[winches]`: the same as `[winches.NAME] rope = ...`")
     length: Optional[float] = Field(None, ge=MIN_ROPE_LENGTH, le=1e3, allow_inf_nan=False,
@@ -79,6 +86,16 @@ class Rope(_Strict):
         default_factory=list, description="rope markers, m of rope from the end")
     particles: Optional[int] = Field(None, ge=1, le=MAX_PARTICLES,
                                      description="particles, rigs without a [discretization] table")
+
+    @model_validator(mode="after")
+    def _one_spelling(self):
+        if self.rings and (self.ring is not None or self.ring_name is not None):
+            raise ValueError("give `ring` (one ring) or `rings` (several), not both")
+        if self.ring_name is not None and self.ring is None:
+            raise ValueError("`ring_name` names the rope's `ring`, and it has none")
+        if self.ring_names and len(self.ring_names) != len(self.rings):
+            raise ValueError(f"`ring_names` has {len(self.ring_names)} names for {len(self.rings)} rings")
+        return self
 
 
 class Winch(_Strict):

@@ -139,14 +139,15 @@ def element_rest_lengths(model, time, states, segment):
     sl = model.seg_elements[segment]
     side = a["el_side"][sl]
     out = np.empty((len(time), sl.stop - sl.start))
-    if segment in model.seg_ring:
-        uA = states[:, model.o_ring + 2 * model.seg_ring[segment]]
-        nA = a["seg_nelA"][s]
-        nB = a["seg_nel"][s] - nA
-        out[:, side == 1] = (uA / nA)[:, None]
-        out[:, side == 2] = ((L - uA) / nB)[:, None]
-    else:
+    rings = model.seg_rings.get(segment, ())
+    if not rings:
         out[:] = (L / a["seg_nel"][s])[:, None]
+        return out
+    # ring j holds the unstretched rope from the start to it; span j lies between rings j - 1 and j
+    bounds = [np.zeros(len(time))] + [states[:, model.o_ring + 2 * r] for r in rings] + [L]
+    for j in range(len(rings) + 1):
+        on_span = side == j + 1
+        out[:, on_span] = ((bounds[j + 1] - bounds[j]) / on_span.sum())[:, None]
     return out
 
 

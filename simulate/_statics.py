@@ -116,9 +116,8 @@ def initial_state(model, t=0.0, held=None):
                 p[2] += 4.0 * sag * w * (1 - w)
                 idx = nodes[j0 + k][1]
                 y[model.o_part + 3 * idx : model.o_part + 3 * idx + 3] = p
-        if name in model.seg_ring:
-            r = model.seg_ring[name]
-            y[model.o_ring + 2 * r] = Lseg[s] * spans[0] / total
+        for j, r in enumerate(model.seg_rings.get(name, ())):
+            y[model.o_ring + 2 * r] = Lseg[s] * sum(spans[: j + 1]) / total
     return y
 
 
@@ -374,17 +373,17 @@ def _jacobian_pattern(model, unknown):
         element_dofs.append((s, dofs))
         seg_dofs.setdefault(s, set()).update(dofs)
     pattern = np.eye(len(unknown), dtype=bool)
+    ring_dofs = {s: {col[model.o_ring + 2 * r] for r in model.seg_rings.get(name, ())}
+                 for s, name in enumerate(model.seg_names)}
     for s, dofs in element_dofs:
         coupled = set(dofs)
-        r = a["seg_ring"][s]
-        if r >= 0:
-            coupled |= seg_dofs[s] | {col[model.o_ring + 2 * r]}
+        if ring_dofs[s]:
+            coupled |= seg_dofs[s] | ring_dofs[s]
         idx = np.array(sorted(coupled))
         pattern[np.ix_(idx, idx)] = True
     for s, dofs in seg_dofs.items():
-        r = a["seg_ring"][s]
-        if r >= 0:
-            idx = np.array(sorted(dofs | {col[model.o_ring + 2 * r]}))
+        if ring_dofs[s]:
+            idx = np.array(sorted(dofs | ring_dofs[s]))
             pattern[np.ix_(idx, idx)] = True
     return pattern
 

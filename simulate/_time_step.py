@@ -208,20 +208,21 @@ def _central_differences(t, y, m, work, jac):
 
 
 def _shortest_rest_lengths(model, Lmin, state):
-    """Each element's rest length at the maneuver's shortest, ring sides at 3/4 of their share."""
+    """Each element's rest length at the maneuver's shortest, ring spans at 3/4 of their share."""
     a = model.arrays
     rest = np.empty(model.n_elements)
     for e in range(model.n_elements):
         s = a["el_seg"][e]
         side = a["el_side"][e]
+        even = Lmin[s] / a["seg_nel"][s]
         if side == 0:
-            rest[e] = Lmin[s] / a["seg_nel"][s]
+            rest[e] = even
             continue
-        nA = a["seg_nelA"][s]
         if state is None:
-            rest[e] = 0.75 * Lmin[s] / a["seg_nel"][s]
-        else:
-            uA = state[model.o_ring + 2 * a["seg_ring"][s]]
-            share = uA / nA if side == 1 else (Lmin[s] - uA) / (a["seg_nel"][s] - nA)
-            rest[e] = 0.75 * min(share, Lmin[s] / a["seg_nel"][s])
+            rest[e] = 0.75 * even
+            continue
+        rings = model.seg_rings[model.seg_names[s]]
+        bounds = [0.0] + [state[model.o_ring + 2 * r] for r in rings] + [Lmin[s]]
+        share = (bounds[side] - bounds[side - 1]) / np.count_nonzero(a["el_side"][model.seg_elements[model.seg_names[s]]] == side)
+        rest[e] = 0.75 * min(share, even)
     return rest

@@ -84,12 +84,16 @@ def gershgorin_rows(rest, L, m):
     k_part = np.zeros(P)
     k_body = np.zeros(nb)
     k_rot = np.zeros((nb, 3))
-    side_len = np.zeros((R, 2))
+    side_len = np.zeros((R, 2))  # each ring's span before (0) and after (1)
     for e in range(el_seg.shape[0]):
         s = el_seg[e]
         k = (seg_ks[s] + seg_kv[s]) / rest[e]
-        if el_side[e] > 0:
-            side_len[seg_ring[s], el_side[e] - 1] += rest[e]
+        side = el_side[e]
+        if side > 0:
+            if side <= m.seg_nring[s]:
+                side_len[seg_ring[s] + side - 1, 0] += rest[e]
+            if side >= 2:
+                side_len[seg_ring[s] + side - 2, 1] += rest[e]
         for end in range(2):
             kind = el_ka[e] if end == 0 else el_kb[e]
             idx = el_ia[e] if end == 0 else el_ib[e]
@@ -141,9 +145,8 @@ def gershgorin_lambda(rest, L, m):
 @njit(cache=True)
 def state_gershgorin_lambda(t, y, m, work):
     """``gershgorin_lambda`` of the rig as it is at (t, y)."""
-    el_seg, el_side = m.el_seg, m.el_side
+    el_seg = m.el_seg
     seg_len0, seg_reel, seg_reel_off = m.seg_len0, m.seg_reel, m.seg_reel_off
-    seg_ring, seg_nel, seg_nelA = m.seg_ring, m.seg_nel, m.seg_nelA
     reel_t, reel_len = m.reel_t, m.reel_len
     Lseg, dLseg, reel_buf, reel_rate = work.Lseg, work.dLseg, work.reel_buf, work.reel_rate
     _segment_lengths(t, seg_len0, seg_reel, seg_reel_off, reel_t, reel_len, Lseg, dLseg, reel_buf, reel_rate)
@@ -153,7 +156,7 @@ def state_gershgorin_lambda(t, y, m, work):
     o_ring = 12 * nb + 6 * P + E
     rest = np.empty(E)
     for e in range(E):
-        rest[e], _ = _element_rest(e, y, el_seg, el_side, seg_ring, seg_nel, seg_nelA, Lseg, dLseg, o_ring)
+        rest[e], _ = _element_rest(e, y, m, Lseg, dLseg, o_ring)
     return gershgorin_lambda(rest, Lseg.copy(), m)
 
 

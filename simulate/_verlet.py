@@ -75,9 +75,9 @@ def element_stretch(t, y, m, work, eps):
                      work.reel_buf, work.reel_rate)
     nx = work.nx
     _gather_nodes(y, m, T, fpos, fvel, nx, work.nv, work.narm, o_part, o_vel, False)
-    el_seg, el_side, el_na, el_nb = m.el_seg, m.el_side, m.el_na, m.el_nb
-    for e in range(el_seg.shape[0]):
-        Le, _ = _element_rest(e, y, el_seg, el_side, m.seg_ring, m.seg_nel, m.seg_nelA, Lseg, dLseg, o_ring)
+    el_na, el_nb = m.el_na, m.el_nb
+    for e in range(m.el_seg.shape[0]):
+        Le, _ = _element_rest(e, y, m, Lseg, dLseg, o_ring)
         na, nb_ = el_na[e], el_nb[e]
         dx, dyy, dz = nx[nb_, 0] - nx[na, 0], nx[nb_, 1] - nx[na, 1], nx[nb_, 2] - nx[na, 2]
         eps[e] = math.sqrt(dx * dx + dyy * dyy + dz * dz) / Le

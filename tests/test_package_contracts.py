@@ -124,7 +124,7 @@ def _dragline_names():
 
     rig = load_rig()
     names = set(rig.bodies) | set(rig.ropes) | set(rig.fixed_points) | set(rig.winches)
-    names |= {f"{w}_length" for w in rig.winches} | {r.ring_site for r in rig.ropes.values() if r.ring}
+    names |= {f"{w}_length" for w in rig.winches} | {site for r in rig.ropes.values() for site in r.ring_sites}
     for body in rig.bodies.values():
         names |= set(body.points)
     return names

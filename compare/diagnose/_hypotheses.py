@@ -393,19 +393,20 @@ def _reading_shift(result, table, reported, channel):
         return (T @ moved)[:, "xyz".index(quantity)]
     if quantity == "length" and name in rig.ropes and name in reported.ropes:
         spec = rig.ropes[name]
-        span = (spec.ring or spec.start).partition(".")[2]
-        start = spec.start.partition(".")[2]
-        if span not in rig.fixed_points or start not in rig.fixed_points:
+        # the fixed path: the rope's start and the fixed rings it passes before its measured span
+        path = [ref.partition(".") for ref in (spec.start, *spec.rings)]
+        if any(kind != "fixed" or point not in rig.fixed_points for kind, _, point in path):
             return 0.0
-        f_sim, f_rep = (np.asarray(r.fixed_points[span], float) for r in (rig, reported))
-        s_sim, s_rep = (np.asarray(r.fixed_points[start], float) for r in (rig, reported))
-        if np.array_equal(f_sim, f_rep) and np.array_equal(s_sim, s_rep):
+        sim, rep = ([np.asarray(r.fixed_points[point], float) for _, _, point in path] for r in (rig, reported))
+        if all(np.array_equal(a, b) for a, b in zip(sim, rep)):
             return 0.0
+        f_sim, f_rep = sim[-1], rep[-1]
         nodes = result.rope_nodes(name)
         # The first node past the span's start: the rope leaves the ring (or the reel) towards it.
         k = int(np.argmin(np.linalg.norm(nodes[0] - f_sim, axis=1))) + 1
-        path = np.linalg.norm(f_rep - s_rep) - np.linalg.norm(f_sim - s_sim) if spec.ring else 0.0
-        return path + np.linalg.norm(nodes[:, k] - f_rep, axis=1) - np.linalg.norm(nodes[:, k] - f_sim, axis=1)
+        moved = sum(np.linalg.norm(b - a) for a, b in zip(rep[:-1], rep[1:])) - sum(
+            np.linalg.norm(b - a) for a, b in zip(sim[:-1], sim[1:]))
+        return moved + np.linalg.norm(nodes[:, k] - f_rep, axis=1) - np.linalg.norm(nodes[:, k] - f_sim, axis=1)
     return 0.0
 
 

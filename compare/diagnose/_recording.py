@@ -320,7 +320,7 @@ def check_maneuver(measured, estimate, rig, bias_allowance=None):
 
 def _rope_kind(rig, channel):
     rope = rig.ropes.get(channel.split(".")[0])
-    return "ring" if rope is not None and rope.ring is not None else "free"
+    return "ring" if rope is not None and rope.rings else "free"
 
 
 def align_with_maneuver(measured, nominal_table, rig):

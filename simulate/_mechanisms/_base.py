@@ -49,22 +49,24 @@ class MechanismType:
 
 
 def rings(model, which):
-    """Ring indices a pulley mechanism acts on: ``all``, or one ring by its site name, its point or its rope.
+    """Ring indices a pulley mechanism acts on: ``all``, or the rings of one site name, point or rope.
 
-    A ring's site name is its rope's ``ring_name`` in the rig file, else the
-    name of the point it sits at (``boom_pulley`` for ``fixed.boom_pulley``).
+    A ring's site name is its ``ring_names`` entry in the rig file, else the
+    name of the point it sits at (``boom_pulley`` for ``fixed.boom_pulley``);
+    a rope's name selects every ring it is reeved through.
     """
-    if not model.seg_ring:
+    if not model.seg_rings:
         raise ValueError("the rig has no ring or sheave for a pulley mechanism to act at")
     if which == "all":
-        return list(model.seg_ring.values())
+        return list(range(model.n_rings))
     sites = {}
-    for seg, ring in model.seg_ring.items():
+    for seg, indices in model.seg_rings.items():
         spec = model.rig.ropes[seg]
-        for name in (spec.ring_site, spec.ring, spec.ring.partition(".")[2], seg):
-            sites.setdefault(name, []).append(ring)
+        for ring, site, point in zip(indices, spec.ring_sites, spec.rings):
+            for name in (site, point, point.partition(".")[2], seg):
+                sites.setdefault(name, []).append(ring)
     if which not in sites:
-        names = sorted({model.rig.ropes[seg].ring_site for seg in model.seg_ring})
+        names = sorted(set(model.ring_sites))
         raise ValueError(f"pulley {which!r} unknown ({', '.join(names + ['all'])})")
     return sorted(set(sites[which]))
 
