@@ -179,7 +179,8 @@ def diagnosis_of(state):
                       "dispersion_kappa": null.kappa, "model_error_allowance": null.allowance,
                       "excess_chi2_updated": null.excess, "model_error_share": null.share},
         "channels": {c: {"noise": float(rec.noise[j]), "offset": state.offsets[c], "offset_nominal": float(b0[j]),
-                         "structure_threshold": structure_threshold(c, rec.noise[j], rec.lowpass_width)}
+                         "structure_threshold": structure_threshold(c, rec.noise[j], rec.lowpass_width,
+                                                                    rec.scale)}
                      for j, c in enumerate(channels)},
         "windows": [{"window": w, "t_start": a, "t_end": b} for w, a, b in rec.windows],
         "alignment": {"time_offset": rec.offset, "time_shift_nominal": float(shift0),
@@ -188,7 +189,9 @@ def diagnosis_of(state):
         "source": state.source or {},
         "settings": {"discretization": discretization if isinstance(discretization, str) else dict(discretization),
                      "candidates": [c["name"] for c in state.candidates], "decay_weight": DECAY_WEIGHT,
-                     "block_s": BLOCK_S, "lowpass_s": LOWPASS_S, "rate_hz": rec.rate_hz,
+                     "block_s": BLOCK_S, "lowpass_s": LOWPASS_S * rec.scale.time, "rate_hz": rec.rate_hz,
+                     "machine_scale": {"swing_hz": rec.scale.swing_hz, "length": rec.scale.length,
+                                       "time": rec.scale.time},
                      "resolved_hz": RESOLVED_HZ, "resolved_min": RESOLVED_MIN},
         "executor": as_executor(state.workers).describe(),
         "timing": {"seconds": _time.perf_counter() - state.started,

@@ -21,6 +21,9 @@ RMS of its low-passed residual exceeds both ``STRUCTURE_SIGMAS`` times
 what noise alone leaves there and a physical floor (``STRUCTURE_FLOOR``):
 the reconstruction's own systematic errors (calibration scale, marker
 offsets) reach a fraction of a millimetre and must not pass for physics.
+These constants are the dragline's; another machine gets them at its own
+scale (``_scale``: lengths by its pendulum length, the low-pass by its
+slowest period).
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ import numpy as np
 
 from ...simulate import ROPE_CHANNELS
 from .._compare import FREE_DECAY_CHANNELS, channel_kind
+from ._scale import REFERENCE
 
 __all__ = [
     "DYNAMIC_CHANNELS",
@@ -61,7 +65,7 @@ MIN_WINDOW_S = 0.5
 MAX_PHASES = 8
 
 
-def noise_level(values, kind="position"):
+def noise_level(values, kind="position", scale=REFERENCE):
     """White-noise level of a sampled signal from its second difference.
 
     Parameters
@@ -71,6 +75,8 @@ def noise_level(values, kind="position"):
         skipped).
     kind : str
         ``position``, ``angle`` or ``rope_length``: selects the floor ``NOISE_FLOOR``.
+    scale : MachineScale
+        The machine's, at which the floor is taken (default: the dragline's).
 
     Returns
     -------
@@ -80,7 +86,7 @@ def noise_level(values, kind="position"):
     y = np.asarray(values, float)
     d2 = y[2:] - 2.0 * y[1:-1] + y[:-2]
     d2 = d2[np.isfinite(d2)]
-    floor = NOISE_FLOOR.get(kind, NOISE_FLOOR["position"])
+    floor = scale.floor(NOISE_FLOOR, kind if kind in NOISE_FLOOR else "position")
     if d2.size < 10:
         return floor
     mad = float(np.median(np.abs(d2 - np.median(d2))))
@@ -116,9 +122,9 @@ def low_pass(values, width):
     return out
 
 
-def structure_threshold(channel, sigma, width):
-    """Low-passed residual RMS above which a channel's mismatch is structured."""
-    return max(STRUCTURE_FLOOR[channel_kind(channel)], STRUCTURE_SIGMAS * sigma / math.sqrt(width))
+def structure_threshold(channel, sigma, width, scale=REFERENCE):
+    """Low-passed residual RMS above which a channel's mismatch is structured (floor at the machine's ``scale``)."""
+    return max(scale.floor(STRUCTURE_FLOOR, channel_kind(channel)), STRUCTURE_SIGMAS * sigma / math.sqrt(width))
 
 
 def time_windows(maneuver, t_stop, t_end):
@@ -177,7 +183,7 @@ def dominant_frequency(values, dt):
     return float(freq[int(np.argmax(power))])
 
 
-def locate_mismatch(time, residual, channels, sigma, windows):
+def locate_mismatch(time, residual, channels, sigma, windows, scale=REFERENCE):
     """Per channel and window: how much structured mismatch, and at what frequency.
 
     Parameters
@@ -190,6 +196,8 @@ def locate_mismatch(time, residual, channels, sigma, windows):
     sigma : sequence of float
         Noise level per channel (:func:`noise_level`).
     windows : sequence of (label, t_start, t_end)
+    scale : MachineScale
+        The machine's: its floors and low-pass (default: the dragline's).
 
     Returns
     -------
@@ -204,7 +212,7 @@ def locate_mismatch(time, residual, channels, sigma, windows):
     """
     t = np.asarray(time, float)
     dt = float(t[1] - t[0])
-    width = max(3, int(round(LOWPASS_S / dt)) | 1)
+    width = scale.lowpass_width(LOWPASS_S, dt)
     smooth = low_pass(residual, width)
     out = []
     for label, t0, t1 in windows:
@@ -217,7 +225,7 @@ def locate_mismatch(time, residual, channels, sigma, windows):
             if np.count_nonzero(ok) < 8:
                 continue
             rms = float(np.sqrt(np.mean(s[ok] ** 2)))
-            score = rms / structure_threshold(ch, sigma[j], width)
+            score = rms / structure_threshold(ch, sigma[j], width, scale)
             out.append({
                 "channel": ch,
                 "window": label,

@@ -12,7 +12,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from .._compare import channel_kind
-from ._locate import LOWPASS_S, low_pass
+from ._locate import low_pass
 from .._report import PAGE_SIZE, report_pdf, text_pages
 
 __all__ = ["write_report_pdf"]
@@ -133,7 +133,8 @@ def _overlay_pages(pdf, diag):
     chans = [c for c in diag.overlay_channels if c in diag.channels] or list(diag.channels)
     t = diag.time
     dt = float(t[1] - t[0])
-    width = max(3, int(round(LOWPASS_S / dt)) | 1)
+    lowpass_s = doc["settings"]["lowpass_s"]
+    width = max(3, int(round(lowpass_s / dt)) | 1)
     t_stop = doc["alignment"]["reels_stop"]
     for k in range(0, len(chans), 3):
         fig = Figure(figsize=PAGE_SIZE)
@@ -171,7 +172,7 @@ def _overlay_pages(pdf, diag):
             ax2.set_ylabel(f"residual ({ru})")
             ax2.legend(loc="upper left", fontsize=6)
         ax2.set_xlabel("time (s, simulation clock); dotted: reels stop; residuals low-passed over "
-                       f"{LOWPASS_S:g} s, dotted band: structure threshold")
+                       f"{lowpass_s:.3g} s, dotted band: structure threshold")
         pdf.savefig(fig)
 
 

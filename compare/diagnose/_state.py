@@ -40,6 +40,8 @@ class Recording:
         The maneuver's phases and the free decay.
     lowpass_width : int
         Samples of the structure low-pass.
+    scale : MachineScale
+        The machine's own scale, at which the diagnosis's floors are taken (``_scale``).
     """
 
     time: np.ndarray
@@ -53,6 +55,7 @@ class Recording:
     alignment: dict
     windows: list
     lowpass_width: int
+    scale: object
 
 
 @dataclass(frozen=True)

@@ -54,6 +54,7 @@ from ._recording import (
     moving_channels,
     rope_bias_allowance,
 )
+from ._scale import machine_scale
 from ._second_round import second_round
 from ._state import NullTest, Recording
 from ._summary import significant_updates, stated_uncertainty, structure_energy
@@ -69,7 +70,8 @@ from ._updating import (
 
 __all__ = ["STEPS", "OFFSET_LIMIT", "DIFFERENT_RIG", "SECOND_EXCESS_SHARE", "SPAN_REFIT"]
 
-# Constant offsets beyond these mean the geometry or calibration differs.
+# Constant offsets beyond these mean the geometry or calibration differs (the dragline's; a machine's own at
+# its scale, ``_scale``).
 OFFSET_LIMIT = {"position": 0.010, "angle": math.radians(2.0)}
 # With the rig's tolerances, offsets are judged after updating: an offset
 # this many times OFFSET_LIMIT that no parameter explains is another rig.
@@ -122,7 +124,8 @@ def align_recording(state):
         _note(state, "the maneuver's points move to the recording's end: no free decay, the forced response "
                      "is judged")
     values = np.column_stack([np.asarray(measured[c], float)[keep] for c in channels])
-    sigma = np.array([noise_level(values[:, j], channel_kind(c)) for j, c in enumerate(channels)])
+    scale = machine_scale(rig, maneuver)
+    sigma = np.array([noise_level(values[:, j], channel_kind(c), scale) for j, c in enumerate(channels)])
     nominal_sim = np.column_stack([np.interp(time, nominal_run.time, np.asarray(nominal_table[c], float))
                                    for c in channels])
     moving = moving_channels(channels, nominal_sim, sigma)
@@ -136,12 +139,12 @@ def align_recording(state):
     recording = Recording(time=time, channels=channels, values=values, noise=sigma, rate_hz=rate, t_stop=t_stop,
                           stop_method=stop_method, offset=offset, alignment=estimate,
                           windows=time_windows(maneuver, t_stop, float(time[-1])),
-                          lowpass_width=max(3, int(round(LOWPASS_S / dt)) | 1))
+                          lowpass_width=scale.lowpass_width(LOWPASS_S, dt), scale=scale)
     ctx = {"rig": rig, "maneuver": maneuver, "discretization": state.discretization, "duration": duration,
            "rate_hz": rate, "initial_state": nominal_run.states[0], "time": time, "channels": channels,
            "nominal_dt": float(nominal_run.dt), "parameters": tuple(rig.tolerances),
            # The recording was reconstructed with this rig's geometry (``channels_on``).
-           "reported_rig": rig}
+           "reported_rig": rig, "scale": scale}
     problem = Problem(time, values, sigma, t_stop)
     return replace(state, recording=recording, nominal_run=nominal_run, nominal_sim=nominal_sim,
                    plain_problem=problem, nominal_ctx=ctx, problem=problem, ctx=ctx)
@@ -179,7 +182,7 @@ def locate_nominal(state):
     rec = state.recording
     evaluation = state.plain_problem.evaluate(state.nominal_sim)
     residual = state.plain_problem.residual(state.nominal_sim, evaluation["nuisance"])
-    located = locate_mismatch(rec.time, residual, rec.channels, rec.noise, rec.windows)
+    located = locate_mismatch(rec.time, residual, rec.channels, rec.noise, rec.windows, rec.scale)
     return replace(state, r_nominal=residual, nominal_nuisance=evaluation["nuisance"], located_nominal=located)
 
 
@@ -222,8 +225,8 @@ def locate_updated(state):
     evaluation = state.problem.evaluate(state.base_sim)
     residual = state.problem.residual(state.base_sim, evaluation["nuisance"])
     # A mismatch the finer model also shows is the model's own error, not missing physics.
-    located = mark_model_error(locate_mismatch(rec.time, residual, rec.channels, rec.noise, rec.windows), rec.time,
-                               state.error_directions, rec.channels)
+    located = mark_model_error(locate_mismatch(rec.time, residual, rec.channels, rec.noise, rec.windows, rec.scale),
+                               rec.time, state.error_directions, rec.channels, scale=rec.scale)
     structured = [e for e in located if e["significant"] and not e["within_model_error"]]
     return replace(state, base_eval=evaluation, r_base=residual, located=located, structured_before=structured,
                    structured_after=structured, located_after=located)
@@ -331,7 +334,7 @@ def score_hypotheses(state):
     rec, problem, update = state.recording, state.problem, state.update
     channels, sigma, width = rec.channels, rec.noise, rec.lowpass_width
     threshold, r0 = state.null.threshold, state.r_base
-    e_before = structure_energy(r0, channels, sigma, width)
+    e_before = structure_energy(r0, channels, sigma, width, rec.scale)
     hypotheses, fitted_series, residuals = [], {}, {}
     for c in state.runnable:
         s = state.scored[c["name"]]
@@ -340,7 +343,7 @@ def score_hypotheses(state):
         params[main] = value
         if value > 0:
             res = problem.residual(s["sim"], s["evaluation"]["nuisance"])
-            frac = 1.0 - structure_energy(res, channels, sigma, width) / e_before if e_before > 0 else 0.0
+            frac = 1.0 - structure_energy(res, channels, sigma, width, rec.scale) / e_before if e_before > 0 else 0.0
             sig_match = signature_match(problem, r0, s["sim"] - state.base_sim)
             band = band_improvement(problem, r0, res)
             residuals[c["name"]] = res
@@ -405,7 +408,8 @@ def locate_after(state):
     rec = state.recording
     name = significant[0]["name"]
     located = mark_model_error(locate_mismatch(rec.time, state.residuals[name], rec.channels, rec.noise,
-                                               rec.windows), rec.time, state.error_directions, rec.channels)
+                                               rec.windows, rec.scale),
+                               rec.time, state.error_directions, rec.channels, scale=rec.scale)
     return replace(state, after_name=name, located_after=located,
                    structured_after=[e for e in located if e["significant"] and not e["within_model_error"]])
 
@@ -421,6 +425,7 @@ def judge_offsets(state):
     another rig.
     """
     channels, update, after = state.recording.channels, state.update, state.after_name
+    scale = state.recording.scale
     b_ref = state.scored[after]["evaluation"]["nuisance"][0] if after else state.base_eval["nuisance"][0]
     offsets = {c: float(b) for c, b in zip(channels, b_ref)}
     left = None
@@ -431,10 +436,10 @@ def judge_offsets(state):
             # offsets left are those of the joint refit with it.
             left = state.joints[after]["offsets"]
         judged = {c: left[c] for c in channels if channel_kind(c) in OFFSET_LIMIT}
-        limit = {c: DIFFERENT_RIG * OFFSET_LIMIT[channel_kind(c)] for c in judged}
+        limit = {c: DIFFERENT_RIG * scale.floor(OFFSET_LIMIT, channel_kind(c)) for c in judged}
     else:
         judged = {c: offsets[c] for c in channels if channel_kind(c) in OFFSET_LIMIT}
-        limit = {c: OFFSET_LIMIT[channel_kind(c)] for c in judged}
+        limit = {c: scale.floor(OFFSET_LIMIT, channel_kind(c)) for c in judged}
     too_far = [c for c in judged if abs(judged[c]) > limit[c]]
     offsets_note = None
     if too_far:
@@ -452,7 +457,7 @@ def decide_verdict(state):
                              updates=significant_updates(state.update))
     left = state.offsets_left
     findings = [c for c in state.recording.channels if state.update is not None and c in left
-                and abs(left[c]) > OFFSET_FINDING.get(channel_kind(c), math.inf)]
+                and abs(left[c]) > state.recording.scale.floor(OFFSET_FINDING, channel_kind(c), math.inf)]
     if findings and not state.too_far:
         reason += ("; finding: constant offsets no parameter within tolerance explains on "
                    + ", ".join(f"{c} ({left[c]:+.3g})" for c in findings))

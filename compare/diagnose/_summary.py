@@ -76,10 +76,10 @@ def before_after_metrics(time, channels, measured, nominal, fitted, model, t_sto
     return out
 
 
-def structure_energy(residual, channels, sigma, width):
-    """Sum of squared low-passed residuals, each channel over its structure threshold."""
+def structure_energy(residual, channels, sigma, width, scale):
+    """Sum of squared low-passed residuals, each channel over its structure threshold at the machine's ``scale``."""
     lp = low_pass(residual, width)
-    thr = np.array([structure_threshold(ch, s, width) for ch, s in zip(channels, sigma)])
+    thr = np.array([structure_threshold(ch, s, width, scale) for ch, s in zip(channels, sigma)])
     return float(np.nansum((lp / thr) ** 2))
 
 

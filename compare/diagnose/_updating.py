@@ -57,6 +57,7 @@ from ...simulate import (
 )
 from .._compare import channel_kind
 from ._hypotheses import _grid_job, _init, _pool, channels_on
+from ._scale import REFERENCE
 
 __all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "update_model", "joint_refit", "model_error", "finer_discretization",
            "nuisance_correlation", "mark_model_error"]
@@ -190,7 +191,13 @@ def model_error(problem, ctx, nominal_sim, workers=2):
     return directions, block
 
 
-def mark_model_error(entries, time, directions, channels, factor=MODEL_ERROR_FACTOR):
+def _offset_prior(ctx):
+    """Each channel's offset prior (SI) at the machine's scale (``ctx["scale"]``; default the dragline's)."""
+    scale = ctx.get("scale", REFERENCE)
+    return np.array([scale.floor(OFFSET_PRIOR, channel_kind(ch), 0.005) for ch in ctx["channels"]])
+
+
+def mark_model_error(entries, time, directions, channels, factor=MODEL_ERROR_FACTOR, scale=REFERENCE):
     """Mark the located mismatch entries that the model's own numerical error could make.
 
     Parameters
@@ -204,6 +211,8 @@ def mark_model_error(entries, time, directions, channels, factor=MODEL_ERROR_FAC
     channels : sequence of str
         The columns' names.
     factor : float
+    scale : MachineScale
+        The machine's: its low-pass (default: the dragline's).
 
     Returns
     -------
@@ -216,7 +225,7 @@ def mark_model_error(entries, time, directions, channels, factor=MODEL_ERROR_FAC
     from ._locate import LOWPASS_S, low_pass
 
     t = np.asarray(time, float)
-    width = max(3, int(round(LOWPASS_S / float(t[1] - t[0]))) | 1)
+    width = scale.lowpass_width(LOWPASS_S, float(t[1] - t[0]))
     smooth = [low_pass(d - np.nanmean(d, axis=0), width) for d in directions]
     out = []
     for e in entries:
@@ -313,7 +322,7 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
             coords, sim, state, sens = start["coords"], start["sim"], start["initial_state"], start["sensitivities"]
             strength, active, failed = start["strength"], start["active"], start["failed"]
             n_sims = start["n_simulations"]
-        offset_sd = np.array([OFFSET_PRIOR.get(channel_kind(ch), 0.005) for ch in ctx["channels"]])
+        offset_sd = _offset_prior(ctx)
         errs = list(error_directions)
         err_var = np.full(len(errs), ERROR_AMPLITUDE_SD**2)
         fit = _trust_region(problem, pool, _Fit(coords, sim, state, sens), active, tol, offset_sd, errs,
@@ -337,7 +346,7 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
     information[active] = np.sqrt(np.clip(np.diag(H_inv)[: len(active)], 0.0, None)) / tol[active]
     rig, maneuver = apply_parameters(ctx["rig"], ctx["maneuver"], params, coords)
     offsets = nuis[len(errs):len(errs) + c]
-    block = _calibration_block(params, coords, cov, information, strength, offsets, ctx["channels"], history,
+    block = _calibration_block(params, coords, cov, information, strength, offsets, ctx, history,
                                failed_names)
     return {"coords": coords, "sim": sim, "initial_state": state, "rig": rig, "maneuver": maneuver,
             "sensitivities": sens, "covariance": cov, "offsets": offsets, "shift": float(nuis[-1]), "block": block,
@@ -392,7 +401,7 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     tol = np.array([p.tolerance for p in params])
     active = update["active"]
     errs = list(error_directions)
-    offset_sd = np.array([OFFSET_PRIOR.get(channel_kind(ch), 0.005) for ch in ctx["channels"]])
+    offset_sd = _offset_prior(ctx)
     job_ctx = dict(ctx, base_physics=[mechanism])
     _init(job_ctx)
     pool = _pool(workers, job_ctx)
@@ -775,7 +784,7 @@ def _apply(X, a, problem, shape):
     return np.where(sw > 0, fitted / np.where(sw > 0, sw, 1.0), 0.0)
 
 
-def _calibration_block(params, coords, cov, information, strength, offsets, channels, history, failed):
+def _calibration_block(params, coords, cov, information, strength, offsets, ctx, history, failed):
     entries = []
     for i, p in enumerate(params):
         sd = float(math.sqrt(max(cov[i, i], 0.0)))
@@ -809,10 +818,11 @@ def _calibration_block(params, coords, cov, information, strength, offsets, chan
              if abs(corr[i, j]) > DEGENERATE and information[i] < 1.0 and information[j] < 1.0]
     left = {}
     findings = []
-    for j, ch in enumerate(channels):
+    scale = ctx.get("scale", REFERENCE)
+    for j, ch in enumerate(ctx["channels"]):
         kind = channel_kind(ch)
         left[ch] = float(offsets[j])
-        lim = OFFSET_FINDING.get(kind)
+        lim = scale.floor(OFFSET_FINDING, kind)
         if lim is not None and abs(offsets[j]) > lim:
             findings.append(ch)
     return {
@@ -824,6 +834,7 @@ def _calibration_block(params, coords, cov, information, strength, offsets, chan
         "failed_sensitivities": failed,
         "method": ("bounded trust-region least squares (scipy trf) over the rig file's tolerances, with them as "
                    f"priors: sensitivities by finite differences over {FD_FRACTION:g} tolerance; per-channel offsets (prior "
-                   f"{OFFSET_PRIOR['position'] * 1000:g} mm, {math.degrees(OFFSET_PRIOR['angle']):g} deg) and the "
+                   f"{scale.floor(OFFSET_PRIOR, 'position') * 1000:.3g} mm, "
+                   f"{math.degrees(OFFSET_PRIOR['angle']):g} deg) and the "
                    "clock shift fitted jointly; identifiable when the data at least halve the prior spread"),
     }
