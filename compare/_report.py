@@ -19,10 +19,12 @@ from contextlib import contextmanager
 import matplotlib
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter
 
 from ..capture import atomic_file
 from ._align import align_tables
 from ._compare import channel_kind
+from ._machine_figure import draw_machine
 from ._report_figures import ERROR_UNITS, discretization_page, figure_pages, free_decay_page
 
 __all__ = ["write_report", "report_pdf", "REPORT_STYLE"]
@@ -328,7 +330,50 @@ def _decay_summary_lines(summary):
     return lines
 
 
-def write_report(path, measured, simulated, metrics, study=None, sources=None):
+def _glance_page(pdf, title, measured, simulated, metrics, machine):
+    """The first page: the verdict, the machine, every channel's error against its tolerance, the worst plotted."""
+    s = metrics["summary"]
+    fig = Figure(figsize=PAGE_SIZE)
+    fig.suptitle(title, fontsize=12)
+    grid = fig.add_gridspec(3, 2, height_ratios=[0.35, 1.6, 1.0], hspace=0.45, wspace=0.45, left=0.1, right=0.96,
+                            top=0.93, bottom=0.06)
+    words = fig.add_subplot(grid[0, :])
+    words.axis("off")
+    words.text(0, 1, f"{s['n_pass']} of {s['n_channels']} channels within tolerance, {s['n_fail']} outside, "
+                     f"{s['n_missing']} missing.", va="top", fontsize=11, weight="bold")
+    ok = {c: e for c, e in metrics["channels"].items() if e["status"] == "ok" and e["rms_tolerance"]}
+    ratio = {c: e["rms_error"] / e["rms_tolerance"] for c, e in ok.items()}
+    worst = max(ratio, key=ratio.get) if ratio else None
+    if worst is not None:
+        words.text(0, 0.35, f"Worst: {worst}, RMS error {error_text(worst, ok[worst]['rms_error'])} against a "
+                            f"tolerance of {error_text(worst, ok[worst]['rms_tolerance'])}.", va="top", fontsize=9)
+    if machine is not None:
+        draw_machine(fig.add_subplot(grid[1, 0]), machine)
+    ax = fig.add_subplot(grid[1, 1])
+    order = sorted(ratio, key=ratio.get)
+    ax.barh(range(len(order)), [max(ratio[c], 1e-3) for c in order],
+            color=["tab:green" if ok[c]["verdict"] == "pass" else "tab:red" for c in order])
+    ax.axvline(1.0, color="k", lw=0.8, ls="--")
+    ax.set_xscale("log")
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_yticks(range(len(order)))
+    ax.set_yticklabels(order, fontsize=max(3.5, min(7.0, 300.0 / max(len(order), 1))))
+    ax.set_xlabel("RMS error / tolerance (green: pass, red: fail)")
+    ax.set_title("Every channel against its tolerance", fontsize=9)
+    if worst is not None:
+        ax = fig.add_subplot(grid[2, :])
+        time, meas, sim = align_tables(measured, simulated, metrics["time_offset"]["applied"], channels=[worst])
+        scale, unit = ERROR_UNITS[channel_kind(worst)]
+        ax.plot(time, scale * meas[worst].to_numpy(), color="black", lw=1.0, label="measured")
+        ax.plot(time, scale * sim[worst].to_numpy(), color="tab:red", lw=1.0, ls="--", label="predicted")
+        ax.set_xlabel("time (s, simulation clock)")
+        ax.set_ylabel(f"{worst} ({unit})")
+        ax.set_title(f"The worst channel, {worst}", fontsize=9)
+        ax.legend(loc="upper right", fontsize=7)
+    pdf.savefig(fig)
+
+
+def write_report(path, measured, simulated, metrics, study=None, sources=None, machine=None):
     """Write the comparison report as a multi-page PDF, atomically.
 
     Parameters
@@ -343,6 +388,8 @@ def write_report(path, measured, simulated, metrics, study=None, sources=None):
         :func:`discretization_study` output: adds Fig. 21.
     sources : dict, optional
         Labels printed on the summary page, e.g. ``{"measured": "a.csv"}``.
+    machine : MachinePicture, optional
+        The machine, drawn on the first page (``machine_picture``).
     """
     figure_channels = [ch for _, ch, _, _ in metrics["preset"]["figures"]]
     figure_channels += [row["channel"] for row in metrics.get("peaks", ())]
@@ -351,9 +398,10 @@ def write_report(path, measured, simulated, metrics, study=None, sources=None):
         if c in measured.columns or c in simulated.columns
     ))
     time, meas, sim = align_tables(measured, simulated, metrics["time_offset"]["applied"], channels=channels)
-    machine = metrics["preset"]["machine"]
-    title = ("Dragline validation" if metrics["preset"]["name"] == "paper" else f"Validation of {machine}")
+    title = ("Dragline validation" if metrics["preset"]["name"] == "paper"
+             else f"Validation of {metrics['preset']['machine']}")
     with report_pdf(path, "dragline comparison report") as pdf:
+        _glance_page(pdf, f"{title} at a glance", measured, simulated, metrics, machine)
         text_pages(pdf, f"{title}: measured vs predicted motion", _summary_lines(metrics, sources))
         text_pages(pdf, "All channels", _channel_lines(metrics), size=6.5)
         figure_pages(pdf, time, meas, sim, metrics, PAGE_SIZE)

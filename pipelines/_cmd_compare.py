@@ -10,6 +10,7 @@ from dragline.capture import write_json
 from dragline.compare import (
     compare_tables,
     discretization_study,
+    machine_picture,
     read_trajectory_table,
     write_report,
 )
@@ -99,7 +100,8 @@ def run(args):
         write_json(args.json, metrics)
     if args.report:
         sources = {"measured": os.path.basename(args.measured), "simulated": os.path.basename(args.simulated)}
-        write_report(args.report, measured, simulated, metrics, study=study, sources=sources)
+        write_report(args.report, measured, simulated, metrics, study=study, sources=sources,
+                     machine=machine_picture(rig, maneuver))
     if not args.quiet:
         s, off = metrics["summary"], metrics["time_offset"]
         print(

@@ -24,6 +24,8 @@ from dragline.simulate import (
     stable_time_step,
 )
 
+from dragline.compare import draw_machine, picture_at
+
 from ._guard import guard_outputs
 from ._options import check_output_path, discretization_from_args
 
@@ -113,27 +115,11 @@ def draw_rig(path, model, state):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    picture = picture_at(model, state)
     fig, axes = plt.subplots(1, 2, figsize=(10, 5))
-    fixed = model.fixed_positions([0.0])[0]
-    for ax, (i, j, label) in zip(axes, ((0, 2, "x"), (1, 2, "y"))):
-        for seg in model.seg_names:
-            nodes = model.node_positions(state, seg)[0]
-            kind = model.rig.ropes[seg].kind
-            ax.plot(nodes[:, i], -nodes[:, j], "-", lw=1.0 if kind != "chain" else 2.0,
-                    color={"rope": "tab:blue", "cable": "tab:cyan", "chain": "tab:gray"}[kind])
-        for b, name in enumerate(model.body_names):
-            p = state[12 * b: 12 * b + 3]
-            size = model.rig.bodies[name].size
-            ax.add_patch(plt.Rectangle((p[i] - size[i] / 2, -p[j] - size[j] / 2), size[i], size[j],
-                                       color="tab:orange", alpha=0.6))
-            ax.annotate(name, (p[i], -p[j]), fontsize=7)
-        ax.plot(fixed[:, i], -fixed[:, j], "k^", ms=5)
-        ax.set_xlabel(f"{label} (m)")
-        ax.set_ylabel("height, -z (m)")
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.grid(alpha=0.3)
-    axes[0].set_title("side (x-z)")
-    axes[1].set_title("front (y-z)")
+    for ax, view, title in zip(axes, ((0, 2), (1, 2)), ("side (x-z)", "front (y-z)")):
+        draw_machine(ax, picture, view)
+        ax.set_title(title)
     fig.suptitle(model.rig.name)
     fig.tight_layout()
     with atomic_file(path) as tmp:

@@ -332,6 +332,30 @@ def test_report_is_deterministic(tmp_path, aero_diagnosis):
     assert a.read_bytes().startswith(b"%PDF") and a.read_bytes() == b.read_bytes()
 
 
+def test_the_reports_first_page_says_the_verdict_in_words_and_shows_the_machine_and_worst_channel(
+        tmp_path, aero_diagnosis):
+    pypdf = pytest.importorskip("pypdf")
+    from dragline.compare.diagnose._diagnose import write_diagnosis_report
+
+    doc = aero_diagnosis.doc
+    assert doc["verdict"] == "aero_drag"
+    path = tmp_path / "d.pdf"
+    write_diagnosis_report(path, aero_diagnosis)
+    first = " ".join(pypdf.PdfReader(str(path)).pages[0].extract_text().split())
+    cd = next(h for h in doc["hypotheses"] if h["name"] == "aero_drag")["parameters"]["cd"]
+    assert f"The model leaves out aero_drag: cd = {cd:.3g}" in first
+    assert f"Worst channel, {doc['mismatch'][0]['channel']}" in first
+    assert "Candidates against the noise threshold" in first and "pulley_inertia" in first
+    assert all(body in first for body in ("bucket", "spreader_bar", "hoist_cluster", "drag_cluster"))
+
+
+def test_the_verdict_in_words_says_none_and_unexplained_plainly():
+    from dragline.compare.diagnose._report import verdict_words
+
+    assert "within its noise" in verdict_words({"verdict": "none", "hypotheses": []})
+    assert "no candidate mechanism explains it" in verdict_words({"verdict": "unexplained", "hypotheses": []})
+
+
 def test_the_steps_leave_their_input_state_as_it_was_and_compose_to_diagnose(nominal_measured, nominal_diagnosis):
     """``diagnose`` is ``STEPS`` run in order over one state, each step returning a new state: run
     one at a time, every step leaves the state it was given unchanged (its pickled bytes), and the

@@ -25,6 +25,7 @@ import numpy as np
 from ...capture import json_ready, write_json
 from ...simulate import SimulationError, StaticsError, default_maneuver, load_rig
 from .._executor import as_executor
+from .._machine_figure import picture_at
 from ._band import RESOLVED_HZ, RESOLVED_MIN
 from ._hypotheses import BLOCK_S, DECAY_WEIGHT, MIN_IMPROVEMENT, NULL_QUANTILE, NULL_SURROGATES
 from ._locate import LOWPASS_S, structure_threshold
@@ -64,6 +65,8 @@ class Diagnosis:
         every channel-window entry of ``_locate.locate_mismatch``.
     overlay_channels : list of str
         The channels the report draws measured against the models.
+    machine : MachinePicture or None
+        The nominal rig at the nominal run's start, drawn on the report's first page.
     """
 
     doc: dict
@@ -75,6 +78,7 @@ class Diagnosis:
     fitted: dict = field(default_factory=dict)
     located: dict = field(default_factory=dict)
     overlay_channels: list = field(default_factory=list)
+    machine: object = None
 
 
 
@@ -202,7 +206,9 @@ def diagnosis_of(state):
     return Diagnosis(doc=json_ready(doc), time=time, channels=channels, measured=measured, nominal=nominal,
                      updated=updated, fitted=dict(state.fitted_series),
                      located={"before": json_ready(state.located), "after": json_ready(state.located_after)},
-                     overlay_channels=report_channels(state.rig, channels, "overlay_channels"))
+                     overlay_channels=report_channels(state.rig, channels, "overlay_channels"),
+                     machine=picture_at(state.nominal_run.model, state.nominal_run.states[0],
+                                        float(state.nominal_run.time[0])))
 
 
 def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretization="baseline", candidates=None,

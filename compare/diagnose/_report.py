@@ -10,8 +10,12 @@ import math
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter
+
+import textwrap
 
 from .._compare import channel_kind
+from .._machine_figure import draw_machine
 from ._locate import low_pass
 from .._report import PAGE_SIZE, report_pdf, text_pages
 
@@ -98,6 +102,85 @@ def _summary_lines(doc):
     lines += ["", f"{doc['timing']['simulations']} simulations (discretization "
                   f"{doc['settings']['discretization']})"]
     return lines
+
+
+def verdict_words(doc):
+    """The verdict as a sentence a person reads first."""
+    verdict = doc["verdict"]
+    if verdict == "none":
+        return "The model fits the recording within its noise: no missing physics is needed."
+    if verdict == "unexplained":
+        return "The model misses the recording, and no candidate mechanism explains it."
+    best = next((h for h in doc["hypotheses"] if h["name"] == verdict), None)
+    if best is None:
+        return f"The model leaves out {verdict}."
+    p = best["main_parameter"]
+    u = best["uncertainty"].get("interval_68")
+    band = f" (68 %: {_f(u[0])} to {_f(u[1])})" if u else ""
+    return (f"The model leaves out {verdict}: {p} = {_f(best['parameters'][p], '.3g')}{band}; held-out RMS "
+            f"{best['rms_before']:.2f} -> {best['rms_after']:.2f} times the noise.")
+
+
+def _glance_page(pdf, diag):
+    """The first page: the verdict in words, the machine, the worst channel before and after, the candidates."""
+    doc = diag.doc
+    fig = Figure(figsize=PAGE_SIZE)
+    name = diag.machine.name if diag.machine is not None else "the rig"
+    fig.suptitle(f"Diagnosis of {name}", fontsize=12)
+    grid = fig.add_gridspec(3, 2, height_ratios=[0.5, 1.3, 1.2], hspace=0.45, wspace=0.3, left=0.09, right=0.96,
+                            top=0.93, bottom=0.06)
+    words = fig.add_subplot(grid[0, :])
+    words.axis("off")
+    words.text(0, 1, "\n".join(textwrap.wrap(verdict_words(doc), 85)), va="top", fontsize=10, weight="bold")
+    words.text(0, 0.35, "\n".join(textwrap.wrap("Why: " + doc["reason"], 120)[:5]), va="top", fontsize=7)
+    if diag.machine is not None:
+        draw_machine(fig.add_subplot(grid[1, 0]), diag.machine)
+    _candidate_bars(fig.add_subplot(grid[1, 1]), doc)
+    _worst_channel(fig.add_subplot(grid[2, :]), diag)
+    pdf.savefig(fig)
+
+
+def _candidate_bars(ax, doc):
+    hyps = doc["hypotheses"]
+    threshold = doc["null_test"]["threshold"]
+    if not hyps:
+        ax.text(0.5, 0.5, "no candidate was fitted", ha="center", va="center")
+        ax.axis("off")
+        return
+    gains = [max(h["improvement"], 1e-3) for h in hyps]
+    colours = ["tab:green" if h["significant"] else "0.6" for h in hyps]
+    ax.barh(range(len(hyps)), gains, color=colours)
+    ax.set_xscale("log")
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.axvline(max(threshold, 1e-3), color="tab:red", lw=1.0, ls="--", label=f"threshold {threshold:.3g}")
+    ax.set_yticks(range(len(hyps)))
+    ax.set_yticklabels([h["name"] for h in hyps], fontsize=7)
+    ax.invert_yaxis()
+    ax.set_xlabel("held-out improvement (chi2; green: significant)")
+    ax.set_title("Candidates against the noise threshold", fontsize=9)
+    ax.legend(loc="lower right", fontsize=7)
+
+
+def _worst_channel(ax, diag):
+    doc = diag.doc
+    worst = next((e["channel"] for e in doc["mismatch"] if e["channel"] in diag.channels), diag.channels[0])
+    j = diag.channels.index(worst)
+    ps, pu = PLOT[channel_kind(worst)]
+    best = doc["free_decay"]["fitted_model"]
+    fitted = diag.fitted.get(best)
+    t = diag.time
+    ax.plot(t, ps * diag.measured[:, j], color="0.55", lw=0.6, label="measured")
+    ax.plot(t, ps * diag.nominal[:, j], color="tab:red", ls="--", lw=1.0, label="nominal model")
+    if fitted is not None:
+        ax.plot(t, ps * fitted[:, j], color="tab:blue", lw=1.0, label=f"with {best}")
+    rms = lambda model: float(np.sqrt(np.nanmean((diag.measured[:, j] - model[:, j]) ** 2)))  # noqa: E731
+    rs, ru = RESID[channel_kind(worst)]
+    after = f" -> {rs * rms(fitted):.3g} {ru} with {best}" if fitted is not None else ""
+    ax.set_title(f"Worst channel, {worst}: RMS error {rs * rms(diag.nominal):.3g} {ru} (nominal){after}", fontsize=9)
+    ax.axvline(doc["alignment"]["reels_stop"], color="k", lw=0.6, ls=":")
+    ax.set_xlabel("time (s, simulation clock); dotted: the maneuver stops")
+    ax.set_ylabel(f"{worst} ({pu})")
+    ax.legend(loc="upper right", ncol=3, fontsize=7)
 
 
 def _calibration_lines(doc):
@@ -238,13 +321,16 @@ def _map_page(pdf, diag):
 def write_report_pdf(path, diag):
     """Write the diagnosis report of a ``Diagnosis`` atomically.
 
-    Pages: summary (verdict, hypotheses with uncertainty, mismatch, free
+    Pages: the verdict at a glance (in words, the machine, the worst
+    channel before and after, the candidates against their threshold),
+    summary (verdict, hypotheses with uncertainty, mismatch, free
     decay), before/after overlays of the key channels with low-passed
     residuals, each candidate's fit profile, the mismatch map before and
     after.
     """
     with report_pdf(path, "dragline diagnosis") as pdf:
-        text_pages(pdf, "Dragline diagnosis: what physics does the model leave out?", _summary_lines(diag.doc),
+        _glance_page(pdf, diag)
+        text_pages(pdf, "Diagnosis: what physics does the model leave out?", _summary_lines(diag.doc),
                     size=TEXT_SIZE)
         _overlay_pages(pdf, diag)
         _profile_page(pdf, diag.doc)
