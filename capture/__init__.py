@@ -32,7 +32,7 @@ stage.
 """
 
 # Helpers first: every later stage imports them.
-from ._schema_tools import describe_validation_error, fields_markdown, key_text, short_repr
+from ._schema_tools import MIN_TIME_STEP_S, describe_validation_error, fields_markdown, key_text, short_repr
 from ._atomic import atomic_file
 from ._strict_json import json_ready, json_text, write_json
 

@@ -18,6 +18,7 @@ units, frames), not used.
 from __future__ import annotations
 
 import os
+import struct
 
 import numpy as np
 
@@ -173,6 +174,7 @@ def read_c3d(path):
         raise ValueError(f"{path}: the C3D file holds no 3D points")
     if points.shape[2] > MAX_FRAMES:
         raise ValueError(f"{path}: {points.shape[2]} frames is more than this tool reads ({MAX_FRAMES})")
+    promised = _declared_frames(path, params)
     rate = float((_param(params, "POINT", "RATE") or [header["points"]["frame_rate"]])[0])
     if not (np.isfinite(rate) and rate > 0):
         raise ValueError(f"{path}: POINT:RATE is {rate:g}; a frame rate must be positive")
@@ -197,6 +199,9 @@ def read_c3d(path):
               "units": [str(u).strip() for u in (_param(params, "ANALOG", "UNITS") or [])][: len(analog_labels)],
               "frames": data["analog_frames"]}
     info = {}
+    if promised is not None and points.shape[2] < promised:
+        # What is there is read, as a damaged session's frames are: the user is told, not refused.
+        info["cut_short"] = f"the header promises {promised} frames, the data end after {points.shape[2]}"
     for key in ("COMPANY", "SOFTWARE", "VERSION_LABEL"):
         value = _param(params, "MANUFACTURER", key)
         if value:
@@ -205,6 +210,25 @@ def read_c3d(path):
                       # ezc3d counts from 0; the file (and every lab's software) from 1.
                       first_frame=int(header["points"]["first_frame"]) + 1, units=units, analog=analog, info=info,
                       events=_events(params))
+
+
+def _declared_frames(path, params):
+    """The frame count the file's own header declares (None when it defers to a parameter that is absent).
+
+    ezc3d trims its header's last frame to the frames it could read, so a file cut short would read as a
+    shorter one without a word: the header block's words 4 and 5 (first and last frame, 16 bits, in the
+    byte order of the processor the parameter section names: 86 is big-endian MIPS) are read here.
+    """
+    with open(path, "rb") as fh:
+        head = fh.read(512)
+        fh.seek(max(head[0] - 1, 0) * 512)
+        section = fh.read(4)
+    order = ">" if len(section) == 4 and section[3] == 86 else "<"
+    first, last = struct.unpack_from(order + "HH", head, 6)
+    if last == 0xFFFF:  # more frames than 16 bits hold: the count is POINT:FRAMES (or another parameter)
+        frames = _param(params, "POINT", "FRAMES")
+        return int(frames[0]) if frames and float(frames[0]) > 0 else None
+    return last - first + 1 if last >= first else None
 
 
 def _events(params):

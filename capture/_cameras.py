@@ -128,10 +128,13 @@ def load_cameras(path):
         (``_cameras_schema``, docs/schemas.md): one line naming the file,
         the camera and the field.
     """
-    with open(path) as fh:
+    with open(path, encoding="utf-8") as fh:
         try:
             doc = json.load(fh)
         except json.JSONDecodeError as exc:
             raise ValueError(f"{path}: not a JSON cameras file ({exc.msg})") from None
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"{path}: not a JSON cameras file: not UTF-8 text (byte {exc.start}: "
+                             f"0x{exc.object[exc.start]:02x}; JSON is UTF-8)") from None
     check_cameras_doc(doc, path)
     return [Camera.from_dict(c) for c in doc["cameras"]]

@@ -22,6 +22,11 @@ CAMERAS_FORMAT = "dragline.cameras/1"
 MAX_CAMERAS = 256
 MAX_FOCAL_PX = 1e6
 MAX_IMAGE_PX = 100_000
+# A pinhole's view across its image's larger side: wider than 170 deg is a fish-eye, which this lens model
+# (five distortion terms) cannot describe; narrower than 0.5 deg is a telescope, not a motion-capture lens.
+# With the image's larger side W (px) they bound the focal length: W / (2 tan(85 deg)) <= f <= W / (2 tan(0.25 deg)).
+MAX_VIEW_DEG = 170.0
+MIN_VIEW_DEG = 0.5
 # A lens model beyond these is not a lens (OpenCV's own fits stay within a few units).
 MAX_DISTORTION = 1e3
 # A camera further than this from the lab's origin does not film the rig (m).
@@ -54,6 +59,12 @@ class CameraEntry(_Strict):
         (fx, _, _), (k10, fy, _), bottom = self.K
         if not (0 < fx <= MAX_FOCAL_PX and 0 < fy <= MAX_FOCAL_PX):
             raise ValueError(f"focal lengths fx = {fx:g}, fy = {fy:g} px must be > 0 and <= {MAX_FOCAL_PX:g}")
+        side = max(self.image_size)
+        low, high = (side / (2 * math.tan(math.radians(v / 2))) for v in (MAX_VIEW_DEG, MIN_VIEW_DEG))
+        if not (low <= min(fx, fy) and max(fx, fy) <= high):
+            raise ValueError(f"focal lengths fx = {fx:g}, fy = {fy:g} px on a {side} px wide image make a view "
+                             f"outside {MIN_VIEW_DEG:g}-{MAX_VIEW_DEG:g} deg (f from {low:.3g} to {high:.3g} px): "
+                             "no motion-capture lens")
         if k10 != 0 or list(bottom) != [0, 0, 1]:
             raise ValueError("K's lower rows must be [0, fy, cy] and [0, 0, 1]")
         if max(abs(d) for d in self.dist) > MAX_DISTORTION:

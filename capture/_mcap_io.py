@@ -465,7 +465,14 @@ def _read_session_file(path):
 
     def on_message(channel, schema, message):
         if channel.topic == INFO_TOPIC and state["info"] is None:
-            state["info"] = json.loads(message.data)
+            try:
+                state["info"] = json.loads(message.data)
+            except json.JSONDecodeError as exc:
+                raise ValueError(f"{path}: the session info message ({INFO_TOPIC}) is not JSON: {exc.msg} at "
+                                 f"character {exc.pos} of {len(message.data)}") from None
+            except UnicodeDecodeError as exc:
+                raise ValueError(f"{path}: the session info message ({INFO_TOPIC}) is not UTF-8 text "
+                                 f"(byte {exc.start})") from None
         elif channel.topic in topics and channel.message_encoding == "json":
             try:
                 msg = json.loads(message.data)

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import typing
 
-__all__ = ["describe_validation_error", "fields_markdown", "key_text", "short_repr"]
+__all__ = ["describe_validation_error", "fields_markdown", "key_text", "short_repr", "MIN_TIME_STEP_S"]
+
+# No motion-capture or control clock ticks faster than 100 kHz (a session's rate is at most that,
+# ``_session_schema.MAX_RATE_HZ``): rows of a table closer than this in time were not sampled by one.
+MIN_TIME_STEP_S = 1e-5
 
 
 def key_text(key):

@@ -244,7 +244,7 @@ def _marker_file_text(s):
              f"(frames {s['first_frame']}-{s['first_frame'] + s['frames'] - 1}, {_fmt_s(s['duration_s'])} s), "
              f"units {s['units']}"]
     for k, v in s["info"].items():
-        lines.append(f"  {k}: {v}")
+        lines.append(f"  {'CUT SHORT' if k == 'cut_short' else k}: {v}")
     lines += _event_lines(s.get("events", []))
     groups = {}
     for m in s["markers"]:

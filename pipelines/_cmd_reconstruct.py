@@ -12,6 +12,8 @@ from __future__ import annotations
 import os
 import sys
 
+import numpy as np
+
 from dragline.capture import (
     load_cameras,
     resolve_recording,
@@ -59,8 +61,9 @@ def add_parser(sub):
     p.add_argument("--outlier-mm", type=number("nonnegative", maximum=1e6), default=20.0, metavar="MM",
                    help="a marker farther than this from the median of its +-3 frames is dropped as an "
                         "outlier before gap filling (default 20; 0 keeps every sample)")
-    p.add_argument("--max-reprojection-px", type=number(maximum=1e4), default=3.0, metavar="PX",
-                   help="views reprojecting worse than this are rejected as outliers (default 3)")
+    # Below a hundredth of a pixel even a noiseless centroid's rounding is rejected.
+    p.add_argument("--max-reprojection-px", type=number(maximum=1e4, minimum=0.01), default=3.0, metavar="PX",
+                   help="views reprojecting worse than this are rejected as outliers (default 3; 0.01-10000)")
     add_between_option(p)
     p.add_argument("--summary-json", metavar="FILE", help="write the reconstruction summary (gap counts, ...) as JSON")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
@@ -77,6 +80,17 @@ def _calibration(args, session_dir, session_path):
     if not os.path.isfile(path):
         raise ValueError(f"{path}: no such calibration file")
     return path, load_cameras(path)
+
+
+def _check_not_empty(table, kind, args, path):
+    """A table without one finite value is no reconstruction: say what emptied it instead of writing it."""
+    values = table.drop(columns="time").to_numpy(float)
+    if values.size and np.isfinite(values).any():
+        return
+    cause = ("the file holds no finite coordinate of the rig's markers" if kind == "markers" else
+             f"no marker survived triangulation with --max-reprojection-px {args.max_reprojection_px:g} "
+             "(the right calibration and rig?)")
+    raise ValueError(f"{path}: nothing reconstructed, no channel has a finite value: {cause}")
 
 
 def run(args):
@@ -107,6 +121,8 @@ def run(args):
         if args.calibration:
             notes.append("--calibration ignored: a marker file is already three-dimensional")
         table, summary = reconstruct_marker_file(path, between=between, **options)
+        if "cut_short" in summary:
+            notes.append(f"{path} is cut short: {summary['cut_short']}; the frames there are read")
         if between:
             cut = summary["cut"]
             notes.append(f"kept frames {cut['frames'][0]}-{cut['frames'][1]}, from event '{cut['start']}' at "
@@ -132,6 +148,7 @@ def run(args):
             write_c3d(args.c3d, labels, points, session.rate_hz)
         if args.trc:
             write_trc(args.trc, labels, points, session.rate_hz)
+    _check_not_empty(table, kind, args, path)
     write_trajectory_csv(args.out, table)
     if args.summary_json:
         write_json(args.summary_json, summary)

@@ -24,7 +24,9 @@ def add_parser(sub):
                        description="Simulate a maneuver from static equilibrium and write the trajectory table (CSV).")
     add_model_options(p)
     p.add_argument("--duration", type=number(), default=10.0, metavar="S", help="simulated time (s, default 10)")
-    p.add_argument("--rate", type=number(), default=200.0, metavar="HZ", help="output rate (Hz, default 200)")
+    # a table sampled faster than every 1e-5 s is refused by every reader (capture.MIN_TIME_STEP_S)
+    p.add_argument("--rate", type=number(maximum=1e5), default=200.0, metavar="HZ",
+                   help="output rate (Hz, default 200, at most 100000)")
     p.add_argument("--dt", type=number(), default=None, metavar="S", help="fixed integration step (s; default: the integrator's stability limit, cut as the rig stiffens)")
     p.add_argument("--integrator", choices=("verlet", "rk4"), default="verlet",
                    help="velocity Verlet (default: one right-hand side a step) or classical RK4 (the reference)")

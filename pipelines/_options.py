@@ -25,8 +25,9 @@ _RANGES = {
 }
 
 
-def number(kind="positive", integer=False, maximum=None):
-    """An argparse ``type``: a finite number in ``kind``'s range, at most ``maximum`` (argparse names the option)."""
+def number(kind="positive", integer=False, maximum=None, minimum=None):
+    """An argparse ``type``: a finite number in ``kind``'s range, within ``minimum``-``maximum`` in size
+    (the door's bounds: what no lab can use) (argparse names the option)."""
     ok, words = _RANGES[kind]
 
     def parse(text):
@@ -39,6 +40,8 @@ def number(kind="positive", integer=False, maximum=None):
                                              f"got {text!r}")
         if maximum is not None and abs(value) > maximum:
             raise argparse.ArgumentTypeError(f"expected at most {maximum:g}, got {text!r}")
+        if minimum is not None and value != 0 and abs(value) < minimum:
+            raise argparse.ArgumentTypeError(f"expected at least {minimum:g}, got {text!r}")
         return value
 
     return parse

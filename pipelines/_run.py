@@ -57,6 +57,8 @@ def read_config(path):
         raise ValueError(f"cannot read config {path}: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"config {path} is not valid TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"config {path} is not UTF-8 text (TOML is UTF-8)") from None
     return validate_config(doc, path)
 
 

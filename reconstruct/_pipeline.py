@@ -70,6 +70,7 @@ from ..simulate import (
 )
 from ._bodies import body_frames_paper, body_frames_svd, body_origin, mass_centre
 from ._gaps import fill_gaps, fill_rigid, nan_runs
+from ._reach import check_within_reach
 from ._rates import (
     RunningAverage,
     SavitzkyGolay,
@@ -444,6 +445,7 @@ def trajectory_from_markers(names, positions, rate_hz, rig=None, method="paper",
     p = np.asarray(positions, dtype=float)
     if p.ndim != 3 or p.shape[-1] != 3 or p.shape[1] != len(names):
         raise ValueError(f"positions must have shape (frames, {len(names)}, 3), got {p.shape}")
+    check_within_reach(p, names, rig)
     if not (np.isfinite(rate_hz) and rate_hz > 0):
         raise ValueError(f"rate_hz must be positive, got {rate_hz}")
     if method not in METHODS:
@@ -669,6 +671,8 @@ def reconstruct_marker_file(path, rig=None, method="paper", smoothing="running_a
         raise ValueError(f"{path}: {exc}") from None
     summary["path"] = path
     summary["format"] = markers.format
+    if "cut_short" in markers.info:
+        summary["cut_short"] = markers.info["cut_short"]
     if between is not None:
         summary["cut"] = markers.info["cut"]
     return table, summary

@@ -16,8 +16,17 @@ import pandas as pd
 from ..simulate import BODY_QUANTITIES, Maneuver, euler_from_matrix
 from ._bodies import mass_centre
 from ._rates import body_rates, finite_difference
+from ._reach import check_within_reach
 
-__all__ = ["tracked_trajectory"]
+__all__ = ["tracked_trajectory", "tracked_within_reach"]
+
+
+def tracked_within_reach(poses, rig):
+    """ValueError naming the first tracked body or point (and frame) out of the rig's reach (``_reach``)."""
+    tracked = {**poses.positions, **poses.points}
+    if tracked:
+        check_within_reach(np.stack([np.asarray(p, float) for p in tracked.values()], axis=1), list(tracked), rig,
+                           noun="tracked")
 
 
 def tracked_trajectory(poses, rig):

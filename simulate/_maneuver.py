@@ -34,11 +34,18 @@ class Maneuver:
         Winch name -> rope paid out (m, positive), shape (K,).
     points : dict
         Point name -> its position (m), shape (K, 3).
+    source : str
+        The file it was read from ("" when built in code): errors name it.
     """
 
     time: np.ndarray
     lengths: dict = field(default_factory=dict)
     points: dict = field(default_factory=dict)
+    source: str = field(default="", compare=False)
+
+    def described(self):
+        """How an error names it: ``maneuver file PATH``, or ``the maneuver``."""
+        return f"maneuver file {self.source}" if self.source else "the maneuver"
 
     def __post_init__(self):
         time = np.array(self.time, float).reshape(-1)
@@ -173,7 +180,7 @@ def maneuver_from_columns(columns, path):
     lengths = {c[: -len(LENGTH_SUFFIX)]: columns[c] for c in columns if c.endswith(LENGTH_SUFFIX)}
     points = {name: np.asarray(xyz, float) for name, xyz in columns.get("points", {}).items()}
     try:
-        return Maneuver(columns["time"], lengths, points)
+        return Maneuver(columns["time"], lengths, points, source=str(path))
     except ValueError as exc:
         raise ValueError(f"maneuver file {path}: {exc}") from None
 

@@ -13,7 +13,7 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from ..capture import describe_validation_error, fields_markdown, key_text
+from ..capture import MIN_TIME_STEP_S, describe_validation_error, fields_markdown, key_text
 
 __all__ = ["ManeuverColumns", "check_maneuver_columns", "maneuver_markdown", "MAX_ROWS", "LENGTH_SUFFIX"]
 
@@ -36,7 +36,8 @@ class ManeuverColumns(BaseModel):
 
     model_config = ConfigDict(strict=True, frozen=True, extra="forbid")
 
-    time: list[_Time] = Field(min_length=1, max_length=MAX_ROWS, description="s, strictly increasing")
+    time: list[_Time] = Field(min_length=1, max_length=MAX_ROWS,
+                              description=f"s, increasing by at least {MIN_TIME_STEP_S:g} s a row")
     lengths: dict[_Winch, list[_Length]] = Field(
         default_factory=dict, description="`<winch>_length` columns: rope each winch has paid out (m)")
     points: dict[str, list[Annotated[list[_Coordinate], Field(min_length=3, max_length=3)]]] = Field(
@@ -54,6 +55,9 @@ class ManeuverColumns(BaseModel):
         for k in range(1, n):
             if not self.time[k] > self.time[k - 1]:
                 raise ValueError(f"time is not strictly increasing at row {k + 2}")
+            if self.time[k] - self.time[k - 1] < MIN_TIME_STEP_S:
+                raise ValueError(f"time steps {self.time[k] - self.time[k - 1]:.3g} s at row {k + 2}: rows are "
+                                 f"at least {MIN_TIME_STEP_S:g} s apart")
         return self
 
 

@@ -199,7 +199,7 @@ def _point_table(rig, maneuver, fixed_names):
         table[:, i] = maneuver.points.get(name, rig.fixed_points[name])
     unknown = set(maneuver.points) - set(fixed_names)
     if unknown:
-        raise ValueError(f"maneuver moves {sorted(unknown)[0]!r}, which is not a fixed point of the rig")
+        raise ValueError(f"{maneuver.described()} moves {sorted(unknown)[0]!r}, which is not a fixed point of the rig")
     return table
 
 
@@ -267,10 +267,11 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
     seg_names = tuple(rig.ropes)
     missing = [w for w in rig.winches if w not in maneuver.lengths]
     if missing:
-        raise ValueError(f"the maneuver has no {missing[0]}_length column for winch {missing[0]!r} of the rig")
+        raise ValueError(f"{maneuver.described()} has no {missing[0]}_length column for winch {missing[0]!r} of "
+                         "the rig")
     unknown = [w for w in maneuver.lengths if w not in rig.winches]
     if unknown:
-        raise ValueError(f"the maneuver's {unknown[0]}_length column names no winch of the rig "
+        raise ValueError(f"{maneuver.described()}: its {unknown[0]}_length column names no winch of the rig "
                          f"(its winches: {', '.join(rig.winches) or 'none'})")
     guess = rough_body_positions(rig, maneuver.lengths_at(maneuver.time[0]))
 

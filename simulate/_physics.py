@@ -18,7 +18,7 @@ import numpy as np
 
 from ._mechanisms import MECHANISMS
 
-__all__ = ["Mechanism", "MECHANISMS", "parse_physics", "make_mechanism", "mechanism_names"]
+__all__ = ["Mechanism", "MECHANISMS", "parse_physics", "make_mechanism", "mechanism_names", "limits_markdown"]
 
 
 @dataclass(frozen=True)
@@ -56,6 +56,12 @@ def make_mechanism(name, **parameters):
             value = float(value)
             if not np.isfinite(value) or value < 0:
                 raise ValueError(f"mechanism {name}: {key} must be a finite non-negative number")
+            limit = MECHANISMS[name].limits.get(key)
+            if limit is not None and value > limit:
+                unit = MECHANISMS[name].units.get(key, "-")
+                unit = "" if unit == "-" else f" {unit}"
+                raise ValueError(f"mechanism {name}: {key} = {value:g}{unit} is beyond any machine's "
+                                 f"(at most {limit:g}{unit})")
         params[key] = value
     if "radius" in params and params["radius"] <= 0:
         raise ValueError(f"mechanism {name}: radius must be positive")
@@ -91,3 +97,13 @@ def parse_physics(spec):
                 raise ValueError(f"mechanism {name}: {key}={value!r} is not a number") from None
         given[key] = value.strip() if isinstance(value, str) else value
     return make_mechanism(name, **given)
+
+
+def limits_markdown():
+    """Each mechanism parameter's door bound as a Markdown table (``docs/schemas.md`` holds this text)."""
+    lines = ["| mechanism | parameter | at most | unit |", "|---|---|---|---|"]
+    for name in mechanism_names():
+        kind = MECHANISMS[name]
+        for key, limit in kind.limits.items():
+            lines.append(f"| `{name}` | `{key}` | {limit:g} | {kind.units.get(key, '-')} |")
+    return "\n".join(lines) + "\n"

@@ -135,6 +135,16 @@ class Rig:
     demo: dict | None = None  # {"physics", "duration"}: the trial ``dragline run`` films with no recording
     lab: str = "volume"  # the synthetic lab that films it: "built-in" (the dig's) or "volume" (about its markers)
 
+    @property
+    def reach(self):
+        """How far the machine reaches (m): the spread of its fixed points (once more for each winch rope,
+        which spans among them), every rope's length and every body's size, summed: no part of it, however
+        it moves, is further than this from its fixed points."""
+        points = np.array(list(self.fixed_points.values()), float).reshape(-1, 3)
+        spread = float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else 0.0
+        ropes = sum(spread if r.winch is not None else float(r.length) for r in self.ropes.values())
+        return spread + ropes + sum(float(np.max(b.size)) for b in self.bodies.values())
+
     def particle_counts(self, discretization="baseline"):
         """Particles per rope segment.
 

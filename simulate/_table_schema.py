@@ -16,7 +16,7 @@ from typing import Annotated, Optional
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from ..capture import describe_validation_error, fields_markdown, key_text
+from ..capture import MIN_TIME_STEP_S, describe_validation_error, fields_markdown, key_text
 
 __all__ = ["TrajectoryColumns", "check_trajectory_columns", "trajectory_markdown", "MAX_ROWS"]
 
@@ -34,7 +34,8 @@ class TrajectoryColumns(BaseModel):
 
     model_config = ConfigDict(strict=True, frozen=True, extra="forbid")
 
-    time: list[_Time] = Field(min_length=3, max_length=MAX_ROWS, description="s, strictly increasing")
+    time: list[_Time] = Field(min_length=3, max_length=MAX_ROWS,
+                              description=f"s, increasing by at least {MIN_TIME_STEP_S:g} s a row")
     channels: dict[str, list[_Cell]] = Field(
         default_factory=dict, description="`<entity>.<quantity>` columns (SI units; docs/conventions.md); "
         f"null is a gap; |value| <= {MAX_VALUE:g}")
@@ -45,6 +46,9 @@ class TrajectoryColumns(BaseModel):
         for k in range(1, n):
             if not self.time[k] > self.time[k - 1]:
                 raise ValueError(f"time is not strictly increasing at row {k + 2}")
+            if self.time[k] - self.time[k - 1] < MIN_TIME_STEP_S:
+                raise ValueError(f"time steps {self.time[k] - self.time[k - 1]:.3g} s at row {k + 2}: no clock "
+                                 f"samples motion faster than every {MIN_TIME_STEP_S:g} s")
         for name, values in self.channels.items():
             if len(values) != n:
                 raise ValueError(f"column {name!r} has {len(values)} rows, time {n}")

@@ -99,9 +99,10 @@ def test_the_weakest_realistic_magnitudes_move_the_bucket_beyond_the_models_own_
 def test_every_machine_gets_twenty_cases_with_its_own_candidates_and_no_physics_controls():
     from dragline.benchmarks._machine_cases import MACHINE_MAGNITUDES, MIN_CASES, MIN_NONE, machine_cases
 
-    seen = set()
+    seen, by_rig = set(), {}
     for rig in ("pendulum", "slung_load", "gantry_crane"):
         cases = machine_cases(rig, seed=3)
+        by_rig[rig] = {c[0] for c in cases}
         assert len(cases) >= MIN_CASES and sum(c[0] is None for c in cases) >= MIN_NONE
         assert all(c[3] == "realistic" and c[4] == rig for c in cases)
         seeds = [c[2] for c in cases]
@@ -111,8 +112,10 @@ def test_every_machine_gets_twenty_cases_with_its_own_candidates_and_no_physics_
             if name in MECHANISMS:
                 lo, hi = MECHANISMS[name].range
                 assert lo < value < hi
-    # Chain-link friction only where there are chains (the crane's slings); no pulley on these machines.
-    assert "chain_link_friction" in seen and "pulley_friction" not in seen
+    # Chain-link friction only where there are chains (the crane's slings); pulley friction only where there is
+    # a ring (the crane's hook block sheave).
+    assert {"chain_link_friction", "pulley_friction"} <= by_rig["gantry_crane"]
+    assert not {"chain_link_friction", "pulley_friction"} & (by_rig["pendulum"] | by_rig["slung_load"])
     assert set(MACHINE_MAGNITUDES) <= seen
 
 

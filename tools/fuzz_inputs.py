@@ -98,10 +98,48 @@ def build_seeds(folder):
     run = simulate(duration=2.0, rate_hz=50.0)
     write_trajectory_csv(folder / "simulated.csv", run.table)
     names, points = marker_positions(run)
-    write_vicon_csv(folder / "vicon.csv", [n.replace(".", ":", 1) for n in names], points * 1000.0, 50.0)
+    write_vicon_csv(folder / "vicon.csv", [n.replace(".", ":", 1) for n in names], points, 50.0)
     write_c3d(folder / "markers.c3d", [n.replace(".", ":", 1) for n in names], points, 50.0)
     write_trc(folder / "markers.trc", [n.replace(".", ":", 1) for n in names], points, 50.0)
+    _machine_seeds(folder)
     return folder
+
+
+# Rig files beside the dragline's, each with the maneuver CSV it names: reeving, winches, moving points, a
+# release, a report preset and a hidden mechanism ([demo]).
+MACHINE_RIGS = {"gantry_crane.toml": "simulate/data/gantry_crane.csv", "pendulum.toml": "simulate/data/pendulum.csv",
+                "slung_load.toml": "simulate/data/slung_load.csv",
+                "double_pendulum_release.toml": "tests/data/double_pendulum.csv"}
+
+
+# The flight table's columns its mapping reads (benchmarks/real/stormlord_mapping.toml): the drone, the load.
+FLIGHT_COLUMNS = {0, 1, 2, 14, 15, 16}
+
+
+def _machine_seeds(folder):
+    """The other machines' rig files, a real flight's tracked table with its rig and mapping, and a ROS 2 bag."""
+    for rig, maneuver in MACHINE_RIGS.items():
+        source = REPO / ("tests/data" if rig.startswith("double") else "simulate/data") / rig
+        shutil.copy(source, folder / rig)
+        shutil.copy(REPO / maneuver, folder / Path(maneuver).name)
+    for name in ("stormlord.toml", "stormlord_hover.csv", "stormlord_mapping.toml"):
+        shutil.copy(REPO / "benchmarks" / "real" / name, folder / name)
+    shutil.copy(REPO / "tests" / "data" / "stormlord" / "rosbag_15_rows_0_899.csv", folder / "flight.csv")
+    # The bag the tests write with the official message definitions: a pendulum's ball and pivot.
+    from importlib.util import module_from_spec, spec_from_file_location
+
+    from dragline.simulate import load_rig, simulate
+
+    spec = spec_from_file_location("tracked_tests", REPO / "tests" / "test_tracked_tables.py")
+    helpers = module_from_spec(spec)
+    sys.path.insert(0, str(REPO / "tests"))
+    try:
+        spec.loader.exec_module(helpers)
+    finally:
+        sys.path.remove(str(REPO / "tests"))
+    swing = simulate(load_rig("pendulum"), duration=2.0, rate_hz=100.0, discretization="low")
+    helpers._write_bag(folder / "take.mcap", swing.table)
+    (folder / "take.toml").write_text(helpers.BAG_MAPPING)
 
 
 # ---------------------------------------------------------------- mutations
@@ -175,10 +213,24 @@ def mutate_document(doc, rng, strict_keys):
     return doc, f"{where} = {bad!r} ({name})", nonsense
 
 
-def mutate_csv(text, rng, data_start, sep=","):
-    """One broken copy of a CSV (or a TRC, ``sep`` a tab): (text, what, nonsense)."""
+def mutate_csv(text, rng, data_start, sep=",", time_column=None):
+    """One broken copy of a CSV (or a TRC, ``sep`` a tab): (text, what, nonsense).
+
+    ``time_column``: the column of a table's times, which a clock mutation scales to steps of picoseconds
+    (no lab's clock ticks so fast).
+    """
     lines = text.splitlines()
     rows = list(range(data_start, len(lines)))
+    if time_column is not None and rng.random() < 0.06:
+        for i in rows:
+            cells = lines[i].split(sep)
+            if len(cells) > time_column:
+                try:
+                    cells[time_column] = repr(float(cells[time_column]) * 1e-12)
+                except ValueError:
+                    continue
+                lines[i] = sep.join(cells)
+        return "\n".join(lines) + "\n", "times scaled by 1e-12 (picosecond steps)", True
     kind = rng.random()
     if kind < 0.08:
         cut = rng.randrange(0, max(len(text), 1))
@@ -295,49 +347,52 @@ def make_case(k, rng, seed, work):
     pick = rng.random()
     sub = lambda argv, inp="": [a.replace("{OUT}", str(out)).replace("{SEED}", str(seed)).replace("{IN}", inp)
                                 for a in argv]
-    if pick < 0.16:  # rig TOML
-        doc = tomllib.loads((seed / "rig.toml").read_text())
+    if pick < 0.14:  # rig TOML: the dragline's or another machine's, beside the maneuver it names
+        name = rng.choice(["rig.toml", *MACHINE_RIGS])
+        if name in MACHINE_RIGS:
+            shutil.copy(seed / Path(MACHINE_RIGS[name]).name, work / Path(MACHINE_RIGS[name]).name)
+        doc = tomllib.loads((seed / name).read_text())
         doc, what, nonsense = mutate_document(doc, rng, strict_keys=True)
-        path = work / "rig.toml"
-        path.write_text(_toml(doc))
+        path = work / name
+        what, nonsense = _write_text(path, _toml(doc), rng, what, nonsense)
         argv = ["simulate", "--rig", str(path), "--out", str(out / "t.csv"), *SIM_SHORT]
         return argv, path.name, what, nonsense
-    if pick < 0.26:  # run config
+    if pick < 0.22:  # run config
         doc = tomllib.loads((seed / "config.toml").read_text())
         doc, what, nonsense = mutate_document(doc, rng, strict_keys=True)
         path = work / "config.toml"
         path.write_text(_toml(doc))
         argv = ["run", str(seed / "session"), "--config", str(path), "--out", str(out / "run"), "--quiet"]
         return argv, path.name, what, nonsense
-    if pick < 0.38:  # cameras.json
+    if pick < 0.32:  # cameras.json
         doc = json.loads((seed / "cameras.json").read_text())
         doc, what, nonsense = mutate_document(doc, rng, strict_keys=False)
         path = work / "cameras.json"
-        path.write_text(json.dumps(doc, allow_nan=True))
+        what, nonsense = _write_text(path, json.dumps(doc, allow_nan=True), rng, what, nonsense)
         argv = rng.choice([["reconstruct", str(seed / "session"), "--calibration", str(path), "--out",
                             str(out / "m.csv"), "--quiet"], ["inspect", "--json", str(path)]])
         return argv, path.name, what, nonsense
-    if pick < 0.52:  # session info inside capture.mcap
+    if pick < 0.42:  # session info inside capture.mcap
         info = session_info(seed / "capture.mcap")
         info, what, nonsense = mutate_document(info, rng, strict_keys=False)
         path = work / "capture.mcap"
         rewrite_session_info(seed / "capture.mcap", path, info)
         return _capture_argv(rng, path, out), path.name, what, nonsense
-    if pick < 0.60:  # capture.mcap bytes
+    if pick < 0.49:  # capture.mcap bytes
         data, what, nonsense = mutate_bytes((seed / "capture.mcap").read_bytes(), rng)
         path = work / "capture.mcap"
         path.write_bytes(data)
         return _capture_argv(rng, path, out), path.name, what, nonsense
-    if pick < 0.70:  # maneuver CSV
-        text, what, nonsense = mutate_csv((seed / "maneuver.csv").read_text(), rng, 1)
+    if pick < 0.57:  # maneuver CSV
+        text, what, nonsense = mutate_csv((seed / "maneuver.csv").read_text(), rng, 1, time_column=0)
         path = work / "maneuver.csv"
         path.write_text(text)
         argv = rng.choice([["simulate", "--maneuver", str(path), "--out", str(out / "t.csv"), *SIM_SHORT],
                            ["inspect", "--json", str(path)]])
         return argv, path.name, what, nonsense
-    if pick < 0.80:  # trajectory table
+    if pick < 0.66:  # trajectory table
         src = rng.choice(["measured.csv", "simulated.csv"])
-        text, what, nonsense = mutate_csv((seed / src).read_text(), rng, 1)
+        text, what, nonsense = mutate_csv((seed / src).read_text(), rng, 1, time_column=0)
         path = work / src
         path.write_text(text)
         other = seed / ("simulated.csv" if src == "measured.csv" else "measured.csv")
@@ -347,7 +402,36 @@ def make_case(k, rng, seed, work):
                            ["diagnose", str(path), "--json", str(out / "d.json"), "--candidates", "aero_drag",
                             "--quiet"]])
         return argv, path.name, what, nonsense
-    if pick < 0.85:  # VICON CSV
+    if pick < 0.73:  # a real flight's tracked table (no header, no time column) or its mapping
+        table, mapping = seed / "flight.csv", seed / "stormlord_mapping.toml"
+        if rng.random() < 0.6:
+            text, what, nonsense = mutate_csv(table.read_text(), rng, 0)
+            cell = re.search(r"cell (\d+) =", what)
+            if cell and int(cell.group(1)) - 1 not in FLIGHT_COLUMNS:
+                nonsense = False  # a column the mapping does not read: the diagnosis never sees it
+            path = table = work / "flight.csv"
+            path.write_text(text)
+        else:
+            doc, what, nonsense = mutate_document(tomllib.loads(mapping.read_text()), rng, strict_keys=True)
+            path = mapping = work / "stormlord_mapping.toml"
+            what, nonsense = _write_text(path, _toml(doc), rng, what, nonsense)
+        argv = ["diagnose", str(table), "--rig", str(seed / "stormlord.toml"), "--mapping", str(mapping),
+                "--json", str(out / "d.json"), "--candidates", "aero_drag", "--quiet"]
+        return argv, path.name, what, nonsense
+    if pick < 0.78:  # a ROS 2 bag of pose topics (its bytes) or its mapping
+        bag, mapping = seed / "take.mcap", seed / "take.toml"
+        if rng.random() < 0.6:
+            data, what, nonsense = mutate_bytes(bag.read_bytes(), rng)
+            path = bag = work / "take.mcap"
+            path.write_bytes(data)
+        else:
+            doc, what, nonsense = mutate_document(tomllib.loads(mapping.read_text()), rng, strict_keys=True)
+            path = mapping = work / "take.toml"
+            what, nonsense = _write_text(path, _toml(doc), rng, what, nonsense)
+        argv = ["diagnose", str(bag), "--rig", "pendulum", "--mapping", str(mapping), "--json", str(out / "d.json"),
+                "--candidates", "aero_drag", "--quiet"]
+        return argv, path.name, what, nonsense
+    if pick < 0.83:  # VICON CSV
         text = (seed / "vicon.csv").read_text()
         # Data rows follow the Frame line and the units line (the rate line is a number too).
         lines = text.splitlines()
@@ -358,8 +442,8 @@ def make_case(k, rng, seed, work):
         argv = rng.choice([["reconstruct", str(path), "--out", str(out / "m.csv"), "--quiet"],
                            ["inspect", "--json", str(path)]])
         return argv, path.name, what, nonsense
-    if pick < 0.91:  # C3D (bytes) or TRC (cells) of the same markers
-        if pick < 0.88:
+    if pick < 0.89:  # C3D (bytes) or TRC (cells) of the same markers
+        if pick < 0.86:
             data, what, nonsense = mutate_bytes((seed / "markers.c3d").read_bytes(), rng)
             path = work / "markers.c3d"
             path.write_bytes(data)
@@ -379,6 +463,15 @@ def make_case(k, rng, seed, work):
     option, values = rng.choice(WORD_OPTIONS)
     value = rng.choice(values)
     return ["simulate", option, value, "--out", str(out / "t.csv"), *SIM_SHORT], option, f"{option} {value!r}", True
+
+
+def _write_text(path, text, rng, what, nonsense):
+    """Write a document's text, now and then in UTF-16 (which no reader of a TOML or JSON file may take)."""
+    if rng.random() < 0.04:
+        path.write_bytes(text.encode("utf-16"))
+        return f"{what}, written in UTF-16", True
+    path.write_text(text)
+    return what, nonsense
 
 
 def _capture_argv(rng, path, out):

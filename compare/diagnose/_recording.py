@@ -137,6 +137,9 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
         from ...reconstruct import reconstruct_marker_file
 
         table, summary = reconstruct_marker_file(file, rig=rig, between=between)
+        if "cut_short" in summary:
+            note(f"{file} is cut short: {summary['cut_short']}; the frames there are read")
+            source["cut_short"] = summary["cut_short"]
         if between is not None:
             source["cut"] = summary["cut"]
     else:
@@ -155,10 +158,14 @@ def load_recording(path, maneuver=None, rig=None, calibration=None, progress=Non
 def _load_tracked(path, mapping, rig, maneuver, note):
     """A tracker's table of poses, through its mapping: the trajectory table, the maneuver, the source."""
     from ...capture import read_tracked_bag, read_tracked_table
-    from ...reconstruct import tracked_trajectory
+    from ...reconstruct import tracked_trajectory, tracked_within_reach
 
     bag = str(path).lower().endswith(".mcap")
     poses = (read_tracked_bag if bag else read_tracked_table)(path, mapping)
+    try:
+        tracked_within_reach(poses, rig)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
     # A mapping is a TOML file, or one built in code (a benchmark's, at a flight's own rate).
     named = os.fspath(mapping) if isinstance(mapping, (str, os.PathLike)) else "given in code"
     try:

@@ -11,6 +11,9 @@ class AeroDrag(MechanismType):
     defaults = {"cd": 1.0, "air_density": 1.2}
     units = {"cd": "-", "air_density": "kg/m^3"}
     range = (0.1, 50.0)
+    # No shape drags more than a few times its area (a flat plate 2, a parachute 2.5); no fluid is denser than
+    # mercury (13,600 kg/m^3).
+    limits = {"cd": 100.0, "air_density": 2.0e4}
     doc = ("quadratic drag coefficient (-); air density (kg/m^3); plausible 0.5-2 in air "
            "(larger values stand in for a denser fluid)")
 

@@ -26,6 +26,10 @@ class MechanismType:
     range : tuple of float
         Plausible range of ``main``: what the diagnosis searches (the one
         table of ranges).
+    limits : dict
+        Each numeric parameter's largest possible value: beyond it no
+        material or machine has it, and the input is refused at the door
+        (not a plausible range: the diagnosis never decides by these).
     doc : str
         One line for users: what it is and what values are plausible.
     candidate : bool
@@ -37,6 +41,7 @@ class MechanismType:
     defaults: dict = {}
     units: dict = {}
     range: tuple = (0.0, 0.0)
+    limits: dict = {}
     doc: str = ""
     candidate: bool = True
 

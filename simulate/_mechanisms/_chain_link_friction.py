@@ -11,6 +11,8 @@ class ChainLinkFriction(MechanismType):
     defaults = {"mu": 0.3, "pin_radius": 0.00475, "segments": "default"}
     units = {"mu": "-", "pin_radius": "m"}
     range = (0.01, 1.0)
+    # No dry contact grips beyond mu of a few (rubber on rubber about 1-4); no link pin is metres thick.
+    limits = {"mu": 10.0, "pin_radius": 10.0}
     doc = ("inter-link friction coefficient (-); Coulomb moment mu T pin_radius (m) against "
            "bending at every chain joint (stick or slip); plausible 0.05-0.6 for steel links")
 

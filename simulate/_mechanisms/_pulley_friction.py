@@ -11,6 +11,8 @@ class PulleyFriction(MechanismType):
     defaults = {"mu": 0.1, "pulley": "all"}
     units = {"mu": "-"}
     range = (0.005, 0.5)
+    # No dry contact grips beyond mu of a few (rubber on rubber about 1-4).
+    limits = {"mu": 10.0}
     doc = ("ring friction coefficient (-), capstan T_low (e^(mu wrap) - 1) against the rope's "
            "slide (stick or slip); pulley = a ring's name, its rope, or all; plausible 0.02-0.3")
 

@@ -11,6 +11,8 @@ class SheaveBearingDamping(MechanismType):
     defaults = {"c": 1e-3, "radius": 0.05, "pulley": "all"}
     units = {"c": "N m s/rad", "radius": "m"}
     range = (1e-5, 0.05)
+    # A bearing whose viscous torque is a meganewton-metre per rad/s would hold any sheave still.
+    limits = {"c": 1.0e6, "radius": 100.0}
     doc = ("viscous bearing damping of a sheave (N m s/rad), sheave radius (m): a force c / radius^2 "
            "against the rope's slide; not a diagnosis candidate: the realistic benchmark hides it to "
            "test the diagnosis outside its menu")

@@ -1,0 +1,184 @@
+"""The residue of bad input (issue 40): each example found by a fresh fuzz of 1,207 inputs, as a regression.
+
+Possible, not only well-typed: a clock no lab has, a lens no camera has, a
+marker kilometres from its machine, a friction no material has, an option
+that empties the output. And every refusal names its file; a file cut
+short says so.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import REPO
+from dragline.capture import save_cameras, write_c3d, write_vicon_csv
+from dragline.lab import default_lab_cameras
+from dragline.pipelines.cli import main
+from dragline.simulate import marker_positions, simulate, write_trajectory_csv
+
+SAMPLE = REPO / "samples" / "dig_sample"
+
+
+def _refused(capsys, *argv):
+    """Exit 2 with one line on stderr and no traceback; the line."""
+    code = main([str(a) for a in argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2, err
+    assert len(err) == 1 and "Traceback" not in err[0], err
+    return err[0]
+
+
+@pytest.fixture(scope="module")
+def short_run():
+    return simulate(duration=1.0, rate_hz=50.0)
+
+
+def test_a_table_whose_clock_ticks_faster_than_any_lab_is_refused_naming_it(tmp_path, capsys, short_run):
+    table = short_run.table.copy()
+    real = tmp_path / "simulated.csv"
+    write_trajectory_csv(real, table)
+    table["time"] = np.arange(len(table)) * 1e-13  # was an OverflowError traceback in compare
+    fast = tmp_path / "fast.csv"
+    write_trajectory_csv(fast, table)
+    for pair in ((fast, real), (real, fast)):
+        line = _refused(capsys, "compare", *pair, "--json", tmp_path / "c.json", "--quiet")
+        assert "fast.csv" in line and "time steps 1e-13 s" in line and "1e-05" in line
+    assert not (tmp_path / "c.json").exists()
+
+
+def test_a_lens_no_camera_has_is_refused_naming_the_file(tmp_path, capsys):
+    cameras = default_lab_cameras(seed=1)
+    path = tmp_path / "cameras.json"
+    save_cameras(path, cameras)
+    doc = json.loads(path.read_text())
+    width = max(doc["cameras"][0]["image_size"])
+    doc["cameras"][0]["K"][0][0] = doc["cameras"][0]["K"][1][1] = 14.0  # a 177 deg view on a 1.2 MP sensor
+    path.write_text(json.dumps(doc))
+    line = _refused(capsys, "reconstruct", SAMPLE, "--calibration", path, "--out", tmp_path / "m.csv", "--quiet")
+    assert "cameras.json" in line and "fx = 14" in line and f"{width} px wide" in line
+    # a real lens, 1400 px on the same sensor (a 49 deg view), is read
+    doc["cameras"][0]["K"][0][0] = doc["cameras"][0]["K"][1][1] = 1400.0
+    path.write_text(json.dumps(doc))
+    assert main(["inspect", str(path)]) == 0
+    capsys.readouterr()
+
+
+def test_a_marker_kilometres_from_its_machine_is_refused_naming_file_and_marker(tmp_path, capsys, short_run):
+    names, points = marker_positions(short_run)
+    path = tmp_path / "vicon.csv"
+    write_vicon_csv(path, [n.replace(".", ":", 1) for n in names], points, 50.0)
+    lines = path.read_text().splitlines()
+    first = next(i for i, line in enumerate(lines) if line.startswith("Frame")) + 2
+    cells = lines[first + 3].split(",")
+    cells[2] = "-1e308"  # bucket:alpha's X in mm, frame 4 (was read, exit 0)
+    lines[first + 3] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+    line = _refused(capsys, "reconstruct", path, "--out", tmp_path / "m.csv", "--quiet")
+    assert "vicon.csv" in line and "bucket:alpha at frame 4" in line and "times the rig's reach" in line
+    assert not (tmp_path / "m.csv").exists()
+
+
+def test_a_friction_no_material_has_is_refused_naming_its_bound(tmp_path, capsys):
+    line = _refused(capsys, "simulate", "--physics", "pulley_friction:mu=1e300", "--duration", "0.2",
+                    "--out", tmp_path / "t.csv", "--quiet")
+    assert "--physics" in line and "mu = 1e+300" in line and "at most 10" in line
+    assert main(["simulate", "--physics", "pulley_friction:mu=0.5", "--duration", "0.1", "--rate", "50",
+                 "--out", str(tmp_path / "t.csv"), "--quiet"]) == 0
+
+
+def test_an_option_that_would_empty_the_table_is_refused_and_an_empty_reconstruction_is_an_error(
+        tmp_path, capsys, short_run):
+    line = _refused(capsys, "reconstruct", SAMPLE, "--max-reprojection-px", "1e-300", "--out", tmp_path / "m.csv")
+    assert "--max-reprojection-px" in line and "at least 0.01" in line
+    # a marker file with no coordinate at all: nothing to write, and said so
+    names, points = marker_positions(short_run)
+    path = tmp_path / "empty.csv"
+    write_vicon_csv(path, [n.replace(".", ":", 1) for n in names], np.full_like(points, np.nan), 50.0)
+    line = _refused(capsys, "reconstruct", path, "--out", tmp_path / "m.csv", "--quiet")
+    assert "empty.csv" in line and "nothing reconstructed" in line
+    assert not (tmp_path / "m.csv").exists()
+
+
+def test_a_session_whose_info_message_is_cut_short_is_refused_naming_the_file(tmp_path, capsys):
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    from dragline.capture._mcap_io import INFO_TOPIC
+
+    path = tmp_path / "capture.mcap"
+    with open(SAMPLE / "capture.mcap", "rb") as fh, open(path, "wb") as out:
+        writer = Writer(out)
+        writer.start()
+        schemas, channels = {}, {}
+        for schema, channel, message in make_reader(fh).iter_messages(log_time_order=False):
+            if schema is not None and schema.id not in schemas:
+                schemas[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
+            if channel.id not in channels:
+                channels[channel.id] = writer.register_channel(
+                    channel.topic, channel.message_encoding, schemas.get(channel.schema_id, 0), channel.metadata)
+            data = message.data[: len(message.data) // 2] if channel.topic == INFO_TOPIC else message.data
+            writer.add_message(channels[channel.id], message.log_time, data, message.publish_time)
+        writer.finish()
+    line = _refused(capsys, "inspect", path)
+    assert str(path) in line and "session info message" in line and "not JSON" in line
+
+
+def test_a_cameras_file_in_utf16_is_refused_naming_it(tmp_path, capsys):
+    path = tmp_path / "cameras.json"
+    save_cameras(path, default_lab_cameras(seed=1))
+    path.write_bytes(path.read_text().encode("utf-16"))
+    line = _refused(capsys, "reconstruct", SAMPLE, "--calibration", path, "--out", tmp_path / "m.csv", "--quiet")
+    assert str(path) in line and "not UTF-8" in line
+
+
+def test_a_maneuver_that_moves_a_point_the_rig_lacks_is_refused_naming_the_file(tmp_path, capsys):
+    maneuver = pd.read_csv(SAMPLE / "maneuver.csv")
+    for k in "xyz":
+        maneuver[f"tower.{k}"] = 0.0
+    path = tmp_path / "moves_tower.csv"
+    maneuver.to_csv(path, index=False)
+    line = _refused(capsys, "simulate", "--maneuver", path, "--duration", "0.2", "--out", tmp_path / "t.csv")
+    assert f"maneuver file {path}" in line and "'tower'" in line
+
+
+def test_a_c3d_cut_short_is_read_and_said_to_be(tmp_path, capsys, short_run):
+    names, points = marker_positions(short_run)
+    whole = tmp_path / "whole.c3d"
+    write_c3d(whole, [n.replace(".", ":", 1) for n in names], points, 50.0)
+    cut = tmp_path / "cut.c3d"
+    data = whole.read_bytes()
+    cut.write_bytes(data[: len(data) - 8 * 512])  # the last blocks of frames gone
+    assert main(["inspect", str(cut)]) == 0
+    out = capsys.readouterr().out
+    frames = len(points)
+    assert f"CUT SHORT: the header promises {frames} frames, the data end after" in out
+    assert main(["inspect", str(whole)]) == 0
+    assert "CUT SHORT" not in capsys.readouterr().out
+    # the real example: ezc3d's Optotrak.c3d declares 1149 frames and holds 29
+    assert main(["inspect", str(REPO / "tests" / "data" / "real_exports" / "optotrak_markers.c3d")]) == 0
+    assert "the header promises 1149 frames, the data end after 29" in capsys.readouterr().out
+    out = tmp_path / "m.csv"
+    assert main(["reconstruct", str(cut), "--out", str(out)]) == 0
+    assert "cut.c3d is cut short: the header promises" in capsys.readouterr().err
+    assert math.isfinite(pd.read_csv(out)["bucket.x"].iloc[0])
+
+
+def test_every_mechanism_parameter_has_a_door_bound_listed_in_the_docs():
+    import re
+
+    from dragline.simulate import MECHANISMS
+    from dragline.simulate._physics import limits_markdown
+
+    for name, kind in MECHANISMS.items():
+        numeric = {k for k, v in kind.defaults.items() if not isinstance(v, str)}
+        assert set(kind.limits) == numeric, name
+        # a bound is no plausible range: the diagnosis searches well inside it
+        assert kind.range[1] < kind.limits[kind.main], name
+    doc = (REPO / "docs" / "schemas.md").read_text()
+    block = re.search(r"<!-- generated: mechanism limits -->\n(.*?)<!-- end generated -->", doc, re.S).group(1)
+    assert block == limits_markdown()
