@@ -56,7 +56,7 @@ class CameraEntry(_Strict):
     def _physical(self):
         if not all(0 < v <= MAX_IMAGE_PX for v in self.image_size):
             raise ValueError(f"image_size {list(self.image_size)} must be 1-{MAX_IMAGE_PX} px")
-        (fx, _, _), (k10, fy, _), bottom = self.K
+        (fx, _, cx), (k10, fy, cy), bottom = self.K
         if not (0 < fx <= MAX_FOCAL_PX and 0 < fy <= MAX_FOCAL_PX):
             raise ValueError(f"focal lengths fx = {fx:g}, fy = {fy:g} px must be > 0 and <= {MAX_FOCAL_PX:g}")
         side = max(self.image_size)
@@ -67,6 +67,10 @@ class CameraEntry(_Strict):
                              "no motion-capture lens")
         if k10 != 0 or list(bottom) != [0, 0, 1]:
             raise ValueError("K's lower rows must be [0, fy, cy] and [0, 0, 1]")
+        width, height = self.image_size
+        if not (0 <= cx <= width and 0 <= cy <= height):
+            raise ValueError(f"principal point ({cx:g}, {cy:g}) px lies outside the {width} x {height} px image: "
+                             "a lens's axis meets its own sensor")
         if max(abs(d) for d in self.dist) > MAX_DISTORTION:
             raise ValueError(f"distortion coefficients beyond +-{MAX_DISTORTION:g}")
         if math.hypot(*self.rvec) > 4 * math.pi:

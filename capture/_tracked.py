@@ -18,6 +18,7 @@ body), so the same rotation takes both to the tool's frames.
 
 from __future__ import annotations
 
+import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -178,32 +179,36 @@ def load_tracked_mapping(path):
         raise ValueError(f"{path}: {where} = {value!r}: expected {expected}") from None
 
 
-def _columns(frame, mapping, path):
-    """Every column the mapping names, as float arrays, by the mapping's own keys."""
+def _columns(frame, mapping, path, mapping_name):
+    """Every column the mapping names, as float arrays, by the mapping's own keys (errors name the file at fault:
+    the table, the mapping ``mapping_name``, or both)."""
     wanted = [mapping.table.time] if mapping.table.time is not None else []
     for entry in (*mapping.bodies.values(), *mapping.points.values()):
         if entry.position is None:
-            raise ValueError(f"{path}: a table's mapping gives `position` columns; `topic` is for a ROS 2 bag")
+            raise ValueError(f"{mapping_name}: a table's mapping gives `position` columns; `topic` is for a ROS 2 "
+                             f"bag (reading {path})")
         wanted += list(entry.position) + list(getattr(entry, "quaternion", None) or ())
     out = {}
     for key in wanted:
         if isinstance(key, int):
             if key >= len(frame.columns):
-                raise ValueError(f"{path}: column {key} named by the mapping; the table has {len(frame.columns)}")
+                raise ValueError(f"{path}: column {key} named by the mapping {mapping_name}; the table has "
+                                 f"{len(frame.columns)}")
             name = frame.columns[key]
         elif not mapping.table.header:
-            raise ValueError(f"{path}: the mapping names column {key!r}, but the table has no header: number the "
-                             "columns from 0")
+            raise ValueError(f"{mapping_name}: the mapping names column {key!r}, but the table {path} has no "
+                             "header: number the columns from 0")
         elif key not in frame.columns:
-            raise ValueError(f"{path}: no column {key!r} (the mapping names it; the table has "
+            raise ValueError(f"{path}: no column {key!r} (the mapping {mapping_name} names it; the table has "
                              f"{', '.join(map(str, list(frame.columns)[:8]))}{', ...' if len(frame.columns) > 8 else ''})")
         else:
             name = key
         values = pd.to_numeric(frame[name], errors="coerce")
-        bad = values.isna() & frame[name].notna()
+        bad = (values.isna() & frame[name].notna()) | np.isinf(values.to_numpy(float))
         if bad.any():
             row = int(np.argmax(bad.to_numpy())) + (2 if mapping.table.header else 1)
-            raise ValueError(f"{path}: column {key!r}, row {row} = {frame[name][bad].iloc[0]!r}: expected a number")
+            raise ValueError(f"{path}: column {key!r}, row {row} = {frame[name][bad].iloc[0]!r}: expected a finite "
+                             "number (a gap is an empty cell)")
         out[key] = values.to_numpy(float)
     return out
 
@@ -222,10 +227,12 @@ def read_tracked_table(path, mapping):
         One line naming the file: unreadable, a column the mapping names
         that the table lacks, a non-number, too few rows.
     """
+    mapping_name = "the mapping given in code" if isinstance(mapping, TrackedMapping) else os.fspath(mapping)
     if not isinstance(mapping, TrackedMapping):
         mapping = load_tracked_mapping(mapping)
     if (mapping.table.time is None) == (mapping.table.rate_hz is None):
-        raise ValueError(f"{path}: give the table's clock once in the mapping: a `time` column or a `rate_hz`")
+        raise ValueError(f"{mapping_name}: give the table's clock once in the mapping: a `time` column or a "
+                         f"`rate_hz` (reading {path})")
     try:
         frame = pd.read_csv(path, header=0 if mapping.table.header else None, low_memory=False,
                             nrows=MAX_ROWS + 1)
@@ -237,7 +244,7 @@ def read_tracked_table(path, mapping):
         raise ValueError(f"tracked table {path} has more than {MAX_ROWS} rows")
     if mapping.table.header:
         frame.columns = [str(c).strip() for c in frame.columns]
-    columns = _columns(frame, mapping, path)
+    columns = _columns(frame, mapping, path, mapping_name)
     if mapping.table.time is None:
         t = np.arange(len(frame)) / mapping.table.rate_hz
         if mapping.table.clock == "motion":
@@ -269,7 +276,6 @@ def read_tracked_bag(path, mapping):
     recorder's log time, ``table.stamp = "log"``). Every track is then
     resampled to one uniform clock (``_resampled``).
     """
-    from mcap.exceptions import McapError
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
@@ -285,7 +291,7 @@ def read_tracked_bag(path, mapping):
         by_topic.setdefault(entry.topic, []).append(key)
     try:
         with open(path, "rb") as stream:
-            reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+            reader = make_reader(stream, decoder_factories=[DecoderFactory()])  # noqa: SIM117
             for _, channel, message, ros in reader.iter_decoded_messages(topics=list(by_topic)):
                 stamp = message.log_time  # integer ns: seconds since 1970 in a float lose 0.2 us
                 if mapping.table.stamp == "header":
@@ -300,7 +306,9 @@ def read_tracked_bag(path, mapping):
                     samples[key].append(row)
     except FileNotFoundError:
         raise ValueError(f"bag {path} does not exist") from None
-    except (McapError, OSError, AttributeError, ValueError, EOFError) as exc:
+    except MemoryError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a damaged bag fails inside the decoders (zstd, lz4, CDR) in their own ways
         raise ValueError(f"bag {path} cannot be read as ROS 2 poses: {' '.join(str(exc).split()) or type(exc).__name__}") from None
     tracks = {}
     for key, rows in samples.items():

@@ -33,6 +33,11 @@ class SimulationError(RuntimeError):
 # (2 cores, 2026-11-24); a fine-step study (10 s at 1 us) needs 1e7.
 MAX_STEPS = 5e7
 MAX_RECORD_BYTES = 2 * 2**30
+# No rope, cable or chain stretches a quarter of its length without breaking (nylon, the stretchiest fibre,
+# parts near 20-25 %; steel wire near 2 %): a rig that must, to hang or to be held where its release says, is
+# not a machine (a fuzzed mass centre 1 m off its rope's point stretched a string 98 % at a release, and the
+# string's snap back ran past 100 m/s).
+MAX_STRAIN = 0.25
 # A reel table is refused when it runs a rope's elements below this length
 # (the step would fall towards zero; the rope yanks its end away) or pays
 # rope faster than this speed (a table that jumps 1 m in 1e-12 s).
@@ -252,6 +257,19 @@ def check_reel_table(model):
                                  f"{t[k + 1]:.12g} s; reels move at most {MAX_REEL_SPEED:g} m/s")
 
 
+def _check_strain(model, state, t, how):
+    """ValueError naming the rig file and the rope when a rope must stretch beyond ``MAX_STRAIN`` at ``state``."""
+    time = np.array([float(t)])
+    for seg in model.seg_names:
+        rest = element_rest_lengths(model, time, state[None], seg)[0]
+        length = np.linalg.norm(np.diff(model.node_positions(state[None], seg, time)[0], axis=0), axis=1)
+        strain = float(np.max(length / rest - 1.0))
+        if strain > MAX_STRAIN:
+            raise ValueError(f"{model.rig.source}: {how}, rope {seg} is stretched {100 * strain:.0f} %; no rope, "
+                             f"cable or chain bears more than {100 * MAX_STRAIN:.0f} % (a point, mass or length "
+                             "far from the machine's?)")
+
+
 def _held_pose(rig, release):
     """``release`` (body -> position, angles) as ``solve_statics``'s ``held``; ValueError naming an unknown body."""
     held = {}
@@ -365,6 +383,7 @@ def simulate(
         held = None if not release else _held_pose(rig, release)
         eq = solve_statics(nominal, t0, y0=guess if held is None else None, held=held)
         y0, residual = eq.state, eq.residual
+        _check_strain(nominal, y0, t0, "held where its release says" if held else "at rest")
     else:
         y0, residual = np.array(initial_state, float), float("nan")
     statics_s = _clock.perf_counter() - clock

@@ -182,3 +182,73 @@ def test_every_mechanism_parameter_has_a_door_bound_listed_in_the_docs():
     doc = (REPO / "docs" / "schemas.md").read_text()
     block = re.search(r"<!-- generated: mechanism limits -->\n(.*?)<!-- end generated -->", doc, re.S).group(1)
     assert block == limits_markdown()
+
+
+# Found by the fuzzer's new classes (seeds 91-93), each fixed:
+
+def test_a_release_that_stretches_a_rope_beyond_breaking_is_refused_naming_the_rig(tmp_path, capsys):
+    text = (REPO / "tests" / "data" / "double_pendulum_release.toml").read_text()
+    at = text.rindex("cg_body = [0.0, 0.0, 0.0]")  # the lower bob's mass centre 1 m off its string's point
+    rig = tmp_path / "rig.toml"
+    rig.write_text(text[:at] + "cg_body = [-1.0, 0.0, 0.0]" + text[at + len("cg_body = [0.0, 0.0, 0.0]"):])
+    (tmp_path / "double_pendulum.csv").write_text((REPO / "tests" / "data" / "double_pendulum.csv").read_text())
+    line = _refused(capsys, "simulate", "--rig", rig, "--duration", "0.2", "--out", tmp_path / "t.csv")
+    assert str(rig) in line and "rope lower_string is stretched" in line and "25 %" in line
+
+
+def test_a_principal_point_off_the_sensor_is_refused_naming_the_cameras_file(tmp_path, capsys):
+    path = tmp_path / "cameras.json"
+    save_cameras(path, default_lab_cameras(seed=1))
+    doc = json.loads(path.read_text())
+    doc["cameras"][4]["K"][1][2] = 1e9
+    path.write_text(json.dumps(doc))
+    line = _refused(capsys, "reconstruct", SAMPLE, "--calibration", path, "--out", tmp_path / "m.csv", "--quiet")
+    assert "cameras.json" in line and "principal point" in line
+
+
+@pytest.fixture(scope="module")
+def flight(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("flight")
+    table = folder / "flight.csv"
+    table.write_text((REPO / "tests" / "data" / "stormlord" / "rosbag_15_rows_0_899.csv").read_text())
+    return folder, table, REPO / "benchmarks" / "real" / "stormlord_mapping.toml", REPO / "benchmarks" / "real" / "stormlord.toml"
+
+
+def test_a_tracked_table_with_an_infinite_position_is_refused_naming_row_and_column(capsys, flight):
+    folder, table, mapping, rig = flight
+    lines = table.read_text().splitlines()
+    cells = lines[5].split(",")
+    cells[2] = "inf"  # the drone's z (column 2), row 6: was dropped as a gap
+    bad = folder / "inf.csv"
+    bad.write_text("\n".join(lines[:5] + [",".join(cells)] + lines[6:]) + "\n")
+    line = _refused(capsys, "diagnose", bad, "--rig", rig, "--mapping", mapping, "--json", folder / "d.json")
+    assert "inf.csv" in line and "column 2, row 6" in line and "finite" in line
+
+
+def test_a_mapping_naming_a_column_a_headerless_table_lacks_is_named_as_the_fault(capsys, flight):
+    folder, table, mapping, rig = flight
+    bad = folder / "mapping.toml"
+    bad.write_text(mapping.read_text().replace("position = [14, 15, 16]", 'position = [14, 15, "abc"]'))
+    line = _refused(capsys, "diagnose", table, "--rig", rig, "--mapping", bad, "--json", folder / "d.json")
+    assert line.startswith(f"dragline: error: {bad}:") and "'abc'" in line and "no header" in line
+
+
+def test_a_bag_whose_compressed_chunk_is_damaged_is_refused_naming_it(tmp_path, capsys):
+    import importlib.util
+    import sys
+
+    from dragline.simulate import load_rig
+
+    sys.path.insert(0, str(REPO / "tests"))
+    spec = importlib.util.spec_from_file_location("tracked_tests", REPO / "tests" / "test_tracked_tables.py")
+    helpers = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(helpers)
+    sys.path.remove(str(REPO / "tests"))
+    bag, mapping = tmp_path / "take.mcap", tmp_path / "take.toml"
+    helpers._write_bag(bag, simulate(load_rig("pendulum"), duration=2.0, rate_hz=100.0, discretization="low").table)
+    mapping.write_text(helpers.BAG_MAPPING)
+    data = bytearray(bag.read_bytes())
+    data[len(data) // 2: len(data) // 2 + 4] = b"\x00\xff\x00\xff"  # inside a compressed chunk
+    bag.write_bytes(bytes(data))
+    line = _refused(capsys, "diagnose", bag, "--rig", "pendulum", "--mapping", mapping, "--json", tmp_path / "d.json")
+    assert str(bag) in line
