@@ -24,7 +24,7 @@ from dragline.simulate import (
     stable_time_step,
 )
 
-from dragline.compare import draw_machine, picture_at
+from dragline.compare import draw_machine, machine_scale, picture_at
 
 from ._guard import guard_outputs
 from ._options import check_output_path, discretization_from_args
@@ -77,6 +77,9 @@ def describe_rig(rig, discretization="baseline"):
     modes = linear_modes(springs, solve_statics(springs, t0).state, t0, count=MODES_SHOWN)
     doc["modes"] = [{"frequency_hz": float(f), "dominant": d} for f, d in zip(modes.frequency_hz, modes.dominant)]
     doc["stable_time_step_s"] = float(stable_time_step(model))
+    scale = machine_scale(rig, maneuver)
+    doc["scale"] = {"reach_m": rig.reach, "slowest_swing_hz": scale.swing_hz, "length": scale.length,
+                    "time": scale.time}
     return doc, model, rest.state
 
 
@@ -103,6 +106,10 @@ def _lines(doc):
         (f"{e['frequency_hz']:.4g}" if e["frequency_hz"] >= FREE_HZ else "0, free") + f" ({e['dominant']})"
         for e in doc["modes"]))
     out.append(f"stable time step: {doc['stable_time_step_s']:.3g} s")
+    s = doc["scale"]
+    out.append(f"scale: reaches {s['reach_m']:.3g} m; slowest swing {s['slowest_swing_hz']:.4g} Hz, so the "
+               f"diagnosis's floors are the dragline's x {s['length']:g} in length and its low-pass x {s['time']:g} "
+               "in time (docs/diagnosis.md)")
     out.append(f"tolerances: {len(doc['tolerances'])} parameters" + (
         f" ({', '.join(doc['tolerances'])})" if doc["tolerances"] else ""))
     return out

@@ -73,3 +73,17 @@ def test_a_rig_without_a_body_to_swing_keeps_the_draglines_scale():
                            "viscous_damping": 1.0}},
     })
     assert machine_scale(line, Maneuver([0.0])) == REFERENCE
+
+
+def test_dragline_rig_states_the_machines_scale(tmp_path, capsys):
+    import json
+
+    from dragline.pipelines.cli import main
+
+    out = tmp_path / "rig.json"
+    assert main(["rig", "pendulum", "--json", str(out)]) == 0
+    scale = json.loads(out.read_text())["scale"]
+    own = machine_scale(load_rig("pendulum"))
+    assert scale["length"] == own.length and scale["time"] == own.time
+    assert scale["reach_m"] == pytest.approx(1.0 + 0.08)  # the 1 m wire and the 80 mm ball
+    assert f"floors are the dragline's x {own.length:g} in length" in capsys.readouterr().out

@@ -15,12 +15,14 @@ the work is in one module per concern (docs/diagnosis.md states the method):
 - ``_recording``: the recording read (a session, a VICON export or a
   trajectory table) and checked against the maneuver;
 - ``_summary``: the document's free decay, metrics and calibration sections;
+- ``_scale``: the floors, set on the dragline, at any machine's own scale;
 - ``_state`` and ``_steps``: the state object and the steps over it;
 - ``_diagnose``: the steps run in order, the document read off the state.
 """
 
 from ._diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_diagnosis_json, write_diagnosis_report
 from ._hypotheses import candidate_list
+from ._scale import MachineScale, machine_scale
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
-           "write_diagnosis_report", "candidate_list"]
+           "write_diagnosis_report", "candidate_list", "MachineScale", "machine_scale"]
