@@ -29,6 +29,18 @@ def dig_baseline(rig):
     return simulate(rig, duration=10.0, rate_hz=200.0)
 
 
+def refused_edit(tmp_path, source, edit, load):
+    """``load`` of a copy of file ``source`` with ``edit`` (old, new) applied once: its one-line ValueError,
+    which must start with the copy's path."""
+    bad = tmp_path / Path(source).name
+    bad.write_text(Path(source).read_text().replace(*edit, 1))
+    with pytest.raises(ValueError) as info:
+        load(bad)
+    message = str(info.value)
+    assert message.startswith(str(bad)) and "\n" not in message
+    return message
+
+
 def synthetic_table(t, reel_columns=True):
     """A trajectory table of smooth made-up channels over the dig's reel table."""
     from dragline.simulate import dig_maneuver, trajectory_columns

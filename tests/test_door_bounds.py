@@ -105,25 +105,12 @@ def test_an_option_that_would_empty_the_table_is_refused_and_an_empty_reconstruc
 
 
 def test_a_session_whose_info_message_is_cut_short_is_refused_naming_the_file(tmp_path, capsys):
-    from mcap.reader import make_reader
-    from mcap.writer import Writer
+    from test_fuzz_inputs import _fuzzer
 
-    from dragline.capture._mcap_io import INFO_TOPIC
-
+    fuzzer = _fuzzer()
+    info = json.dumps(fuzzer.session_info(SAMPLE / "capture.mcap")).encode()
     path = tmp_path / "capture.mcap"
-    with open(SAMPLE / "capture.mcap", "rb") as fh, open(path, "wb") as out:
-        writer = Writer(out)
-        writer.start()
-        schemas, channels = {}, {}
-        for schema, channel, message in make_reader(fh).iter_messages(log_time_order=False):
-            if schema is not None and schema.id not in schemas:
-                schemas[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
-            if channel.id not in channels:
-                channels[channel.id] = writer.register_channel(
-                    channel.topic, channel.message_encoding, schemas.get(channel.schema_id, 0), channel.metadata)
-            data = message.data[: len(message.data) // 2] if channel.topic == INFO_TOPIC else message.data
-            writer.add_message(channels[channel.id], message.log_time, data, message.publish_time)
-        writer.finish()
+    fuzzer.rewrite_session_info(SAMPLE / "capture.mcap", path, info[: len(info) // 2])
     line = _refused(capsys, "inspect", path)
     assert str(path) in line and "session info message" in line and "not JSON" in line
 

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import refused_edit
 from dragline.pipelines.cli import main
 from dragline.simulate import Maneuver, assemble, load_rig, make_mechanism, rig_from_dict, simulate
 from scipy.linalg import eigh
@@ -158,12 +159,7 @@ def test_a_kind_no_mechanism_knows_is_refused_naming_it(tmp_path, capsys):
     (('start = "fixed.pivot"', 'start = "fixed.pivot2"'), ["unknown fixed point 'pivot2'"]),
 ])
 def test_a_rig_that_names_nothing_or_holds_nothing_is_refused_with_one_line(tmp_path, capsys, edit, words):
-    bad = tmp_path / "rig.toml"
-    bad.write_text((DATA / "double_pendulum.toml").read_text().replace(*edit, 1))
-    with pytest.raises(ValueError) as info:
-        load_rig(bad)
-    message = str(info.value)
-    assert message.startswith(str(bad)) and "\n" not in message
+    message = refused_edit(tmp_path, DATA / "double_pendulum.toml", edit, load_rig)
     for word in words:
         assert word in message, message
 

@@ -278,7 +278,7 @@ def mutate_bytes(data, rng):
 
 
 def rewrite_session_info(src, dst, info):
-    """A copy of a capture.mcap whose session info message is ``info``."""
+    """A copy of a capture.mcap whose session info message is ``info`` (a document, or the message's bytes)."""
     from mcap.reader import make_reader
     from mcap.writer import Writer
 
@@ -296,7 +296,7 @@ def rewrite_session_info(src, dst, info):
                     channel.topic, channel.message_encoding, schemas.get(channel.schema_id, 0), channel.metadata)
             data = message.data
             if channel.topic == INFO_TOPIC:
-                data = json.dumps(info, allow_nan=True).encode()
+                data = info if isinstance(info, bytes) else json.dumps(info, allow_nan=True).encode()
             writer.add_message(channels[channel.id], message.log_time, data, message.publish_time)
         writer.finish()
 
@@ -403,31 +403,13 @@ def make_case(k, rng, seed, work):
                             "--quiet"]])
         return argv, path.name, what, nonsense
     if pick < 0.73:  # a real flight's tracked table (no header, no time column) or its mapping
-        table, mapping = seed / "flight.csv", seed / "stormlord_mapping.toml"
-        if rng.random() < 0.6:
-            text, what, nonsense = mutate_csv(table.read_text(), rng, 0)
-            cell = re.search(r"cell (\d+) =", what)
-            if cell and int(cell.group(1)) - 1 not in FLIGHT_COLUMNS:
-                nonsense = False  # a column the mapping does not read: the diagnosis never sees it
-            path = table = work / "flight.csv"
-            path.write_text(text)
-        else:
-            doc, what, nonsense = mutate_document(tomllib.loads(mapping.read_text()), rng, strict_keys=True)
-            path = mapping = work / "stormlord_mapping.toml"
-            what, nonsense = _write_text(path, _toml(doc), rng, what, nonsense)
+        table, mapping, path, what, nonsense = _mapped_case(rng, seed, work, "flight.csv", _mutate_flight,
+                                                            "stormlord_mapping.toml")
         argv = ["diagnose", str(table), "--rig", str(seed / "stormlord.toml"), "--mapping", str(mapping),
                 "--json", str(out / "d.json"), "--candidates", "aero_drag", "--quiet"]
         return argv, path.name, what, nonsense
     if pick < 0.78:  # a ROS 2 bag of pose topics (its bytes) or its mapping
-        bag, mapping = seed / "take.mcap", seed / "take.toml"
-        if rng.random() < 0.6:
-            data, what, nonsense = mutate_bytes(bag.read_bytes(), rng)
-            path = bag = work / "take.mcap"
-            path.write_bytes(data)
-        else:
-            doc, what, nonsense = mutate_document(tomllib.loads(mapping.read_text()), rng, strict_keys=True)
-            path = mapping = work / "take.toml"
-            what, nonsense = _write_text(path, _toml(doc), rng, what, nonsense)
+        bag, mapping, path, what, nonsense = _mapped_case(rng, seed, work, "take.mcap", _mutate_bag, "take.toml")
         argv = ["diagnose", str(bag), "--rig", "pendulum", "--mapping", str(mapping), "--json", str(out / "d.json"),
                 "--candidates", "aero_drag", "--quiet"]
         return argv, path.name, what, nonsense
@@ -463,6 +445,34 @@ def make_case(k, rng, seed, work):
     option, values = rng.choice(WORD_OPTIONS)
     value = rng.choice(values)
     return ["simulate", option, value, "--out", str(out / "t.csv"), *SIM_SHORT], option, f"{option} {value!r}", True
+
+
+def _mapped_case(rng, seed, work, data_name, mutate_data, mapping_name):
+    """A recording read through a mapping, one of the two broken: (data, mapping, broken file, what, nonsense)."""
+    data, mapping = seed / data_name, seed / mapping_name
+    if rng.random() < 0.6:
+        path = data = work / data_name
+        what, nonsense = mutate_data(seed / data_name, path, rng)
+    else:
+        doc, what, nonsense = mutate_document(tomllib.loads(mapping.read_text()), rng, strict_keys=True)
+        path = mapping = work / mapping_name
+        what, nonsense = _write_text(path, _toml(doc), rng, what, nonsense)
+    return data, mapping, path, what, nonsense
+
+
+def _mutate_flight(src, dst, rng):
+    text, what, nonsense = mutate_csv(src.read_text(), rng, 0)
+    cell = re.search(r"cell (\d+) =", what)
+    if cell and int(cell.group(1)) - 1 not in FLIGHT_COLUMNS:
+        nonsense = False  # a column the mapping does not read: the diagnosis never sees it
+    dst.write_text(text)
+    return what, nonsense
+
+
+def _mutate_bag(src, dst, rng):
+    data, what, nonsense = mutate_bytes(src.read_bytes(), rng)
+    dst.write_bytes(data)
+    return what, nonsense
 
 
 def _write_text(path, text, rng, what, nonsense):
