@@ -94,8 +94,13 @@ def run(args):
             print("discretization study: simulating low, baseline, medium, high ...", file=sys.stderr)
         study = discretization_study(rig, maneuver, physics, duration=duration, rate_hz=rate, workers=2)
 
-    metrics = compare_tables(measured, simulated, time_offset=offset, free_decay_start=args.free_decay_start,
-                             max_offset=args.max_offset, study=study, rig=rig, maneuver=maneuver)
+    try:
+        metrics = compare_tables(measured, simulated, time_offset=offset, free_decay_start=args.free_decay_start,
+                                 max_offset=args.max_offset, study=study, rig=rig, maneuver=maneuver)
+    except ValueError as exc:
+        if args.measured in str(exc) or args.simulated in str(exc):
+            raise
+        raise ValueError(f"{args.measured} against {args.simulated}: {exc}") from None
     if args.json:
         write_json(args.json, metrics)
     if args.report:

@@ -239,3 +239,15 @@ def test_a_bag_whose_compressed_chunk_is_damaged_is_refused_naming_it(tmp_path, 
     bag.write_bytes(bytes(data))
     line = _refused(capsys, "diagnose", bag, "--rig", "pendulum", "--mapping", mapping, "--json", tmp_path / "d.json")
     assert str(bag) in line
+
+
+def test_a_comparison_with_nothing_to_compare_names_both_tables(tmp_path, capsys, short_run):
+    real = tmp_path / "simulated.csv"
+    write_trajectory_csv(real, short_run.table)
+    empty = short_run.table.copy()
+    empty.loc[:, [c for c in empty.columns if c != "time"]] = np.nan
+    blank = tmp_path / "blank.csv"
+    write_trajectory_csv(blank, empty)
+    line = _refused(capsys, "compare", blank, real, "--json", tmp_path / "c.json", "--quiet")
+    assert "blank.csv" in line and "simulated.csv" in line and "no channel has finite samples" in line
+    assert not (tmp_path / "c.json").exists()
