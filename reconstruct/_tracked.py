@@ -83,7 +83,10 @@ def tracked_trajectory(poses, rig):
         columns.update({f"{name}.{q}": np.asarray(values[q], float) for q in BODY_QUANTITIES})
     maneuver = None
     if poses.points:
-        if not all(np.isfinite(p).all() for p in poses.points.values()):
-            raise ValueError("a tracked point's track has gaps; the model's input must be continuous")
+        for name, track in poses.points.items():
+            missing = ~np.isfinite(np.asarray(track, float)).all(axis=1)
+            if missing.any():
+                raise ValueError(f"the track of point {name!r} has gaps ({int(missing.sum())} samples, the first at "
+                                 f"{time[int(np.argmax(missing))]:.3f} s); the model's input must be continuous")
         maneuver = Maneuver(time, points=dict(poses.points))
     return pd.DataFrame(columns), maneuver

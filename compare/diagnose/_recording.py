@@ -171,7 +171,9 @@ def _load_tracked(path, mapping, rig, maneuver, note):
     try:
         table, tracked = tracked_trajectory(poses, rig)
     except ValueError as exc:
-        raise ValueError(f"{named}: {exc}") from None
+        # What the mapping names that the rig lacks is the mapping's fault; the rest (a gap in a point's
+        # track) is the recording's.
+        raise ValueError(f"{named if str(exc).startswith('the mapping') else path}: {exc}") from None
     source = {"input": path, "kind": "ROS 2 bag" if bag else "tracked table", "mapping": named,
               "tracked": poses.report}
     report = poses.report
