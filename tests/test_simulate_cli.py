@@ -76,7 +76,8 @@ def test_bad_maneuver_tables_exit_2_with_one_line(tmp_path, capsys, rows, messag
         # (these ran for hours or until the kernel killed them).
         (["--dt", "1e-12"], "--dt 1e-12: a 10 s simulation at a 1e-12 s step needs 1e+13 steps"),
         (["--dt", "nan"], "argument --dt: expected a positive finite number, got 'nan'"),
-        (["--rate", "1e9"], "--duration 10 at --rate 1e+09: 10000000000 records"),
+        (["--rate", "1e9"], "argument --rate: expected at most 100000, got '1e9'"),  # no clock ticks so fast
+        (["--rate", "1e5", "--duration", "1e6"], "--duration 1e+06 at --rate 100000: 100000000000 records"),
         (["--duration", "inf"], "argument --duration: expected a positive finite number, got 'inf'"),
     ],
 )
@@ -92,8 +93,9 @@ def test_bad_options_exit_2_with_one_line(tmp_path, capsys, args, message):
     # The drag rope reeled to 1e-9 m: the statics stepped in femtoseconds (a hang), then the rope yanked
     # its cluster past 100 m/s (exit 1).
     ("0,8.6,4.2\n2.5,9.5,3.45\n3.5,9.5,1e-9\n6.5,10.1,1e-9\n", "drag_rope down to 1e-09 m"),
-    # The hoist reel jumps 1 m in 1e-12 s (exit 1 before).
-    ("0,8.6,4.2\n1,8.6,4.2\n1.000000000001,9.6,4.2\n3,9.6,4.2\n", "1e+12 m/s"),
+    # The hoist reel jumps 1 m in 1e-12 s (exit 1 before): no clock ticks so fast; in 1e-5 s, no reel runs so fast.
+    ("0,8.6,4.2\n1,8.6,4.2\n1.000000000001,9.6,4.2\n3,9.6,4.2\n", "time steps 1e-12 s at row 4"),
+    ("0,8.6,4.2\n1,8.6,4.2\n1.00001,9.6,4.2\n3,9.6,4.2\n", "1e+05 m/s"),
 ])
 def test_a_reel_table_the_ropes_cannot_follow_exits_2_naming_the_file(tmp_path, capsys, rows, message):
     path = tmp_path / "m.csv"
