@@ -35,13 +35,12 @@ from ._align import align_tables, channel_status, check_table, estimate_time_off
 from ._decay import free_decay, matrix_pencil
 from ._metrics import channel_metrics, peak, rms_error
 from ._executor import as_executor
-from ._paper import DIG_PEAKS, PAPER_SOURCE, SPREADER_BAR_X_OFFSET
+from ._paper import DIG_PEAKS, PAPER_SOURCE, pitch_rate_note, spreader_offset
 from ._preset import comparison_preset
 
 __all__ = [
     "TOLERANCES",
     "ISO_GOOD",
-    "FREE_DECAY_CHANNELS",
     "compare_tables",
     "discretization_study",
     "channel_kind",
@@ -98,14 +97,6 @@ _KINDS = {
     "length": "rope_length",
 }
 
-# Channels whose free swing after the reels stop is analysed (the paper's
-# figures of positions and pitch angles).
-FREE_DECAY_CHANNELS = (
-    "bucket.x", "bucket.z", "bucket.pitch",
-    "spreader_bar.x", "spreader_bar.z", "spreader_bar.pitch",
-    "hoist_cluster.x", "hoist_cluster.z", "hoist_cluster.pitch",
-    "drag_cluster.x", "drag_cluster.z",
-)
 MIN_DECAY_SAMPLES = 16
 # Two modes are "the same" when their damped frequencies differ by less than this fraction.
 MODE_MATCH = 0.25
@@ -184,35 +175,6 @@ def _peak_table(time, meas, sim):
                 row[side] = {"value": value, "time": when}
         rows.append(row)
     return rows
-
-
-def _spreader_offset(meas, sim):
-    """Mean predicted-minus-measured spreader-bar x, beside the paper's ~51 mm."""
-    ch = "spreader_bar.x"
-    out = {"channel": ch, "paper": SPREADER_BAR_X_OFFSET, "mean_difference": None}
-    if ch in meas.columns and ch in sim.columns:
-        d = np.asarray(sim[ch], float) - np.asarray(meas[ch], float)
-        if np.isfinite(d).any():
-            out["mean_difference"] = float(np.mean(d[np.isfinite(d)]))
-    return out
-
-
-def _pitch_rate_note(meas, sim, body="bucket"):
-    cols = [f"{body}.{q}" for q in ("roll", "yaw", "p", "q", "r")]
-    diff = {}
-    for side, table in (("measured", meas), ("simulated", sim)):
-        if not all(c in table.columns for c in cols):
-            diff[side] = None
-            continue
-        roll, yaw, p, q, r = (np.asarray(table[c], float) for c in cols)
-        _, pitch_rate, _ = euler_rates_from_body_rates(roll, yaw, p, q, r)
-        d = np.abs(pitch_rate - q)
-        diff[side] = float(np.max(d[np.isfinite(d)])) if np.isfinite(d).any() else None
-    return {
-        "definition": f"body rate q ({body}.q), rad/s",
-        "euler_pitch_rate": "(p sin(yaw) + q cos(yaw)) / cos(roll)",
-        "max_difference": diff,
-    }
 
 
 def _decay_side(time, values, t_start):
@@ -451,7 +413,7 @@ def compare_tables(measured, simulated, time_offset="auto", free_decay_start=Non
     }
     if preset.name == "paper":
         out.update(peaks=_peak_table(time, meas, sim), paper_source=PAPER_SOURCE,
-                   pitch_rate=_pitch_rate_note(meas, sim), spreader_bar_x_offset=_spreader_offset(meas, sim))
+                   pitch_rate=pitch_rate_note(meas, sim), spreader_bar_x_offset=spreader_offset(meas, sim))
     if study is not None:
         out["discretization_study"] = _study_summary(time, meas, study, preset.study_channel)
     return out

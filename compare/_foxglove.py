@@ -33,6 +33,7 @@ from scipy.spatial.transform import Rotation
 from ..capture import MCAP_CHUNK_SIZE as CHUNK_SIZE
 from ..capture import atomic_file
 from ..simulate import BODIES, body_to_inertial
+from ._paper import BODY_SIZES
 
 __all__ = ["write_results", "quaternion_from_matrix"]
 
@@ -65,8 +66,6 @@ WORLD_FRAME = "world"
 # Display frame: world turned half a turn about x (x kept, y and z reversed), so z is up.
 Z_UP_FRAME = "world_z_up"
 _HALF_TURN_X = (1.0, 0.0, 0.0, 0.0)  # x, y, z, w
-# Bucket: 0.381 x 0.203 x 0.152 m (paper section 3.1); the other bodies are drawn small.
-BODY_SIZE = {"bucket": (0.381, 0.203, 0.152)}
 _SMALL = (0.05, 0.05, 0.05)
 _PALETTE = {"measured": (0.12, 0.47, 0.71), "simulated": (1.0, 0.50, 0.05)}
 _EXTRA_COLORS = [(0.17, 0.63, 0.17), (0.84, 0.15, 0.16), (0.58, 0.40, 0.74)]
@@ -236,7 +235,7 @@ def write_results(path, tables, markers=None, ropes=None, chunk_size=CHUNK_SIZE,
               for i, s in enumerate(sources)}
     data = {s: _source_data(s, tables[s], (markers or {}).get(s), rope_sets.get(s))
             for s in sources}
-    sizes = BODY_SIZE if body_sizes is None else {k: tuple(float(x) for x in v) for k, v in body_sizes.items()}
+    sizes = BODY_SIZES if body_sizes is None else {k: tuple(float(x) for x in v) for k, v in body_sizes.items()}
 
     known = start_ns is not None
     if known and not (isinstance(start_ns, (int, np.integer)) and 0 <= start_ns < 2**63 - 10**15):

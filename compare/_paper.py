@@ -1,4 +1,5 @@
-"""The seed paper's reported dig-maneuver numbers and figure captions, as constants.
+"""The seed paper's study of the dragline: its reported dig-maneuver numbers, figure captions, the channels
+its figures single out and the notes its report prints (the dragline's report preset).
 
 Source: "Comparison of measured and simulated motion of a scaled dragline
 excavation system", section 4 ("Dig maneuver results") and the captions of
@@ -14,6 +15,10 @@ numbers beside ours without re-signing them.
 
 from __future__ import annotations
 
+import numpy as np
+
+from ..simulate import euler_rates_from_body_rates
+
 __all__ = [
     "PAPER_SOURCE",
     "DIG_PEAKS",
@@ -23,6 +28,10 @@ __all__ = [
     "FIG21_CAPTION",
     "DECAY_PANELS",
     "STUDY_CHANNEL",
+    "FREE_DECAY_CHANNELS",
+    "BODY_SIZES",
+    "spreader_offset",
+    "pitch_rate_note",
 ]
 
 PAPER_SOURCE = (
@@ -31,7 +40,7 @@ PAPER_SOURCE = (
 
 # Peak table of section 4: (value, time) for the paper's measurement and its
 # simulation. "Pitch rate" is compared with our body rate q (bucket.q); see
-# compare/_compare.py for why and how far it is from the Euler pitch rate.
+# ``pitch_rate_note`` below for how far it is from the Euler pitch rate.
 DIG_PEAKS = {
     "bucket.vx": {
         "quantity": "longitudinal velocity",
@@ -115,3 +124,45 @@ STUDY_CHANNEL = "bucket.pitch"
 FIG21_CAPTION = (
     "Measured and predicted bucket pitch angle vs. time for varying bead discretization."
 )
+
+# Channels whose free swing after the reels stop is analysed (the paper's
+# figures of positions and pitch angles).
+FREE_DECAY_CHANNELS = (
+    "bucket.x", "bucket.z", "bucket.pitch",
+    "spreader_bar.x", "spreader_bar.z", "spreader_bar.pitch",
+    "hoist_cluster.x", "hoist_cluster.z", "hoist_cluster.pitch",
+    "drag_cluster.x", "drag_cluster.z",
+)
+
+# Bucket: 0.381 x 0.203 x 0.152 m (paper section 3.1); the results file draws the other bodies small.
+BODY_SIZES = {"bucket": (0.381, 0.203, 0.152)}
+
+
+def spreader_offset(meas, sim):
+    """Mean predicted-minus-measured spreader-bar x, beside the paper's ~51 mm."""
+    ch = "spreader_bar.x"
+    out = {"channel": ch, "paper": SPREADER_BAR_X_OFFSET, "mean_difference": None}
+    if ch in meas.columns and ch in sim.columns:
+        d = np.asarray(sim[ch], float) - np.asarray(meas[ch], float)
+        if np.isfinite(d).any():
+            out["mean_difference"] = float(np.mean(d[np.isfinite(d)]))
+    return out
+
+
+def pitch_rate_note(meas, sim, body="bucket"):
+    """How far the Euler pitch rate is from the body rate q the paper's "pitch rate" is compared with (rad/s)."""
+    cols = [f"{body}.{q}" for q in ("roll", "yaw", "p", "q", "r")]
+    diff = {}
+    for side, table in (("measured", meas), ("simulated", sim)):
+        if not all(c in table.columns for c in cols):
+            diff[side] = None
+            continue
+        roll, yaw, p, q, r = (np.asarray(table[c], float) for c in cols)
+        _, pitch_rate, _ = euler_rates_from_body_rates(roll, yaw, p, q, r)
+        d = np.abs(pitch_rate - q)
+        diff[side] = float(np.max(d[np.isfinite(d)])) if np.isfinite(d).any() else None
+    return {
+        "definition": f"body rate q ({body}.q), rad/s",
+        "euler_pitch_rate": "(p sin(yaw) + q cos(yaw)) / cos(roll)",
+        "max_difference": diff,
+    }

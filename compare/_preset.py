@@ -81,7 +81,8 @@ def comparison_preset(rig=None, measured=None):
         The measured table, whose peak speed and rate set the velocity and
         rate tolerances of a rig that is not the paper's.
     """
-    from ._compare import FREE_DECAY_CHANNELS, TOLERANCES
+    from ._compare import TOLERANCES
+    from ._paper import FREE_DECAY_CHANNELS
     from ._paper import DECAY_PANELS, FIGURES, STUDY_CHANNEL
 
     if rig is None or rig.report.get("preset") == "paper":

@@ -33,7 +33,8 @@ import math
 import numpy as np
 
 from ...simulate import ROPE_CHANNELS
-from .._compare import FREE_DECAY_CHANNELS, channel_kind
+from .._compare import channel_kind
+from .._paper import FREE_DECAY_CHANNELS
 from ._scale import REFERENCE
 
 __all__ = [
