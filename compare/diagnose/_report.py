@@ -173,7 +173,9 @@ def _worst_channel(ax, diag):
     ax.plot(t, ps * diag.nominal[:, j], color="tab:red", ls="--", lw=1.0, label="nominal model")
     if fitted is not None:
         ax.plot(t, ps * fitted[:, j], color="tab:blue", lw=1.0, label=f"with {best}")
-    rms = lambda model: float(np.sqrt(np.nanmean((diag.measured[:, j] - model[:, j]) ** 2)))  # noqa: E731
+    def rms(model):
+        return float(np.sqrt(np.nanmean((diag.measured[:, j] - model[:, j]) ** 2)))
+
     rs, ru = RESID[channel_kind(worst)]
     after = f" -> {rs * rms(fitted):.3g} {ru} with {best}" if fitted is not None else ""
     ax.set_title(f"Worst channel, {worst}: RMS error {rs * rms(diag.nominal):.3g} {ru} (nominal){after}", fontsize=9)
