@@ -29,6 +29,7 @@ import pandas as pd
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from ._clock import recover_clock
+from ._marker_file import MAX_MISSING_ROWS, MAX_SPAN_FACTOR
 from ._schema_tools import describe_validation_error, fields_markdown
 
 __all__ = ["TrackedPoses", "TrackedMapping", "read_tracked_table", "read_tracked_bag", "load_tracked_mapping",
@@ -279,6 +280,7 @@ def read_tracked_bag(path, mapping):
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
+    mapping_name = "the mapping given in code" if isinstance(mapping, TrackedMapping) else os.fspath(mapping)
     if not isinstance(mapping, TrackedMapping):
         mapping = load_tracked_mapping(mapping)
     entries = {**{("body", n): b for n, b in mapping.bodies.items()}, **{("point", n): p for n, p in mapping.points.items()}}
@@ -313,7 +315,8 @@ def read_tracked_bag(path, mapping):
     tracks = {}
     for key, rows in samples.items():
         if not rows:
-            raise ValueError(f"bag {path} has no message on topic {entries[key].topic!r} ({key[0]} {key[1]!r})")
+            raise ValueError(f"{mapping_name}: bag {path} has no message on the topic it names for {key[0]} "
+                             f"{key[1]!r}, {entries[key].topic!r}")
     origin = min(row[0] for rows in samples.values() for row in rows)
     for key, rows in samples.items():
         t = np.array([(row[0] - origin) * 1e-9 for row in rows])
@@ -347,6 +350,11 @@ def _resampled(path, mapping, tracks, rows):
     end = min(v[0][-1] for v in cleaned.values())
     if not end - start > 3 * step:
         raise ValueError(f"{path}: the tracks do not overlap in time")
+    span = (end - start) / step
+    if not span <= MAX_SPAN_FACTOR * rows + MAX_MISSING_ROWS:  # a marker file's frame numbers are held the same
+        # A damaged timestamp once made a 2-second bag span 1.9e11 steps (1.9 TiB of clock).
+        raise ValueError(f"{path}: the timestamps span {end - start:.6g} s at a median step of {step:.3g} s, "
+                         f"{span:.3g} steps for {rows} samples: a timestamp is wrong")
     time = start + np.arange(int(np.floor((end - start) / step + 1e-9)) + 1) * step
     R = frame_rotation(mapping.table.up)
     scale = _UNITS[mapping.table.units]

@@ -30,6 +30,13 @@ MAX_PARTICLES = 500
 # Shorter than this, a rope's elements set a time step of nanoseconds.
 MIN_ROPE_LENGTH = 1e-3  # m
 MAX_COORDINATE = 1e4  # m
+# No body a lab films weighs less than a milligram, or turns about its mass centre with a radius of gyration
+# under a micrometre (inertia >= mass x 1e-12 m^2); no rope's visco-elastic branch relaxes faster than a
+# microsecond (Cv / Kv; the dragline's ropes 0.01 s). Beyond them a fuzzed rig (an inertia or a damping of
+# 1e-300) ran the simulation into non-finite numbers.
+MIN_MASS = 1e-6  # kg
+MIN_GYRATION = 1e-6  # m
+MIN_RELAXATION_S = 1e-6
 # More sheaves than a 64-part reeving has is a typo (the largest offshore hook blocks run about 20 parts).
 MAX_RINGS = 64
 
@@ -45,7 +52,7 @@ class _Strict(BaseModel):
 class Body(_Strict):
     """A rigid body: mass, mass centre, inertia, points and markers (body frame)."""
 
-    mass: float = Field(gt=0, le=1e6, allow_inf_nan=False, description="kg")
+    mass: float = Field(ge=MIN_MASS, le=1e6, allow_inf_nan=False, description="kg")
     cg_body: _Vec3 = Field(description="mass centre about the body reference point (m)")
     inertia_diag: list[_Positive] = Field(min_length=3, max_length=3, description="Ixx, Iyy, Izz (kg m^2)")
     inertia_offdiag: Optional[list[Annotated[float, Field(allow_inf_nan=False)]]] = Field(
@@ -55,6 +62,14 @@ class Body(_Strict):
     points: dict[str, _Vec3] = Field(default_factory=dict, description="rope attachment points (m)")
     markers: dict[str, _Vec3] = Field(default_factory=dict, description="marker positions (m)")
     position: Optional[_Vec3] = Field(None, description="starting guess for the statics (m, inertial)")
+
+    @model_validator(mode="after")
+    def _turns(self):
+        least = self.mass * MIN_GYRATION**2
+        if min(self.inertia_diag) < least:
+            raise ValueError(f"inertia_diag {min(self.inertia_diag):.3g} kg m^2 is below mass x (1 um)^2 = "
+                             f"{least:.3g}: no body turns so easily")
+        return self
 
 
 _Name = Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")]
@@ -86,6 +101,13 @@ class Rope(_Strict):
         default_factory=list, description="rope markers, m of rope from the end")
     particles: Optional[int] = Field(None, ge=1, le=MAX_PARTICLES,
                                      description="particles, rigs without a [discretization] table")
+
+    @model_validator(mode="after")
+    def _relaxes(self):
+        if self.viscous_damping / self.viscous_stiffness < MIN_RELAXATION_S:
+            raise ValueError(f"viscous_damping / viscous_stiffness = {self.viscous_damping / self.viscous_stiffness:.3g} s: "
+                             f"no rope relaxes faster than {MIN_RELAXATION_S:g} s")
+        return self
 
     @model_validator(mode="after")
     def _one_spelling(self):

@@ -26,7 +26,7 @@ BUILT_IN = resources.files("dragline.simulate").joinpath("data/rig.toml").read_t
     ('start = "fixed.drag_reel"', "start = 5", ["ropes.drag_rope.start", "a string"]),
     ("length = 1.088", "length = inf", ["ropes.dump_rope.length", "finite"]),
     ("length = 1.088", "length = 1e-9", ["ropes.dump_rope.length", ">= 0.001"]),
-    ("mass = 5.4975", "mass = -5.4975", ["bodies.bucket.mass", "> 0"]),
+    ("mass = 5.4975", "mass = -5.4975", ["bodies.bucket.mass", ">= 1e-06"]),
     ("mass = 5.4975", "mass = nan", ["bodies.bucket.mass", "finite"]),
     ("mass = 5.4975", 'mass = "5.4975"', ["bodies.bucket.mass", "a number"]),
     ("baseline = [6, 5, 12, 4, 2, 3]", "baseline = [0, 5, 12, 4, 2, 3]", ["discretization.baseline.0", ">= 1"]),
