@@ -25,14 +25,13 @@ from dragline.simulate import (
 )
 
 from dragline.compare import draw_machine, machine_scale, picture_at
+from dragline.compare.diagnose import FREE_HZ
 
 from ._guard import guard_outputs
 from ._options import check_output_path, discretization_from_args
 
 # Modes listed: a few above the rigid swings is what a user checks a model by.
 MODES_SHOWN = 8
-# Below this a mode is a motion nothing resists (a body spinning about its rope): the differences' noise.
-FREE_HZ = 1e-3
 
 
 def add_parser(sub):
@@ -77,7 +76,7 @@ def describe_rig(rig, discretization="baseline"):
     modes = linear_modes(springs, solve_statics(springs, t0).state, t0, count=MODES_SHOWN)
     doc["modes"] = [{"frequency_hz": float(f), "dominant": d} for f, d in zip(modes.frequency_hz, modes.dominant)]
     doc["stable_time_step_s"] = float(stable_time_step(model))
-    scale = machine_scale(rig, maneuver)
+    scale = machine_scale(rig, modes=modes)  # the modes above, not computed again
     doc["scale"] = {"reach_m": rig.reach, "slowest_swing_hz": scale.swing_hz, "length": scale.length,
                     "time": scale.time}
     return doc, model, rest.state

@@ -20,6 +20,7 @@ from dragline.capture import save_cameras, write_c3d, write_vicon_csv
 from dragline.lab import default_lab_cameras
 from dragline.pipelines.cli import main
 from dragline.simulate import marker_positions, simulate, write_trajectory_csv
+from test_tracked_tables import BAG_MAPPING, _write_bag
 
 SAMPLE = REPO / "samples" / "dig_sample"
 
@@ -220,20 +221,8 @@ def test_a_mapping_naming_a_column_a_headerless_table_lacks_is_named_as_the_faul
     assert line.startswith(f"dragline: error: {bad}:") and "'abc'" in line and "no header" in line
 
 
-def test_a_bag_whose_compressed_chunk_is_damaged_is_refused_naming_it(tmp_path, capsys):
-    import importlib.util
-    import sys
-
-    from dragline.simulate import load_rig
-
-    sys.path.insert(0, str(REPO / "tests"))
-    spec = importlib.util.spec_from_file_location("tracked_tests", REPO / "tests" / "test_tracked_tables.py")
-    helpers = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(helpers)
-    sys.path.remove(str(REPO / "tests"))
-    bag, mapping = tmp_path / "take.mcap", tmp_path / "take.toml"
-    helpers._write_bag(bag, simulate(load_rig("pendulum"), duration=2.0, rate_hz=100.0, discretization="low").table)
-    mapping.write_text(helpers.BAG_MAPPING)
+def test_a_bag_whose_compressed_chunk_is_damaged_is_refused_naming_it(tmp_path, capsys, swing_table):
+    bag, mapping = _write_take(tmp_path, swing_table)
     data = bytearray(bag.read_bytes())
     data[len(data) // 2: len(data) // 2 + 4] = b"\x00\xff\x00\xff"  # inside a compressed chunk
     bag.write_bytes(bytes(data))
@@ -270,40 +259,35 @@ def test_a_rig_with_a_body_or_rope_no_lab_has_is_refused_at_the_door(tmp_path, o
         assert word in message, message
 
 
-def _bag_case(tmp_path):
-    import importlib.util
-    import sys
-
+@pytest.fixture(scope="module")
+def swing_table():
     from dragline.simulate import load_rig
 
-    sys.path.insert(0, str(REPO / "tests"))
-    spec = importlib.util.spec_from_file_location("tracked_tests", REPO / "tests" / "test_tracked_tables.py")
-    helpers = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(helpers)
-    sys.path.remove(str(REPO / "tests"))
-    return helpers, simulate(load_rig("pendulum"), duration=2.0, rate_hz=100.0, discretization="low").table
+    return simulate(load_rig("pendulum"), duration=2.0, rate_hz=100.0, discretization="low").table
 
 
-def test_a_mapping_naming_a_topic_the_bag_lacks_is_named_as_the_fault(tmp_path, capsys):
-    helpers, table = _bag_case(tmp_path)
-    bag, mapping = tmp_path / "take.mcap", tmp_path / "take.toml"
-    helpers._write_bag(bag, table)
-    mapping.write_text(helpers.BAG_MAPPING.replace("/vrpn_mocap/ball/pose", "/vrpn_mocap/ball/posezz"))
+def _write_take(folder, table, mapping_text=BAG_MAPPING):
+    """The pendulum's ball and pivot as a ROS 2 bag the tests write (test_tracked_tables), with its mapping."""
+    bag, mapping = folder / "take.mcap", folder / "take.toml"
+    _write_bag(bag, table)
+    mapping.write_text(mapping_text)
+    return bag, mapping
+
+
+def test_a_mapping_naming_a_topic_the_bag_lacks_is_named_as_the_fault(tmp_path, capsys, swing_table):
+    bag, mapping = _write_take(tmp_path, swing_table,
+                               BAG_MAPPING.replace("/vrpn_mocap/ball/pose", "/vrpn_mocap/ball/posezz"))
     line = _refused(capsys, "diagnose", bag, "--rig", "pendulum", "--mapping", mapping, "--json", tmp_path / "d.json")
     assert line.startswith(f"dragline: error: {mapping}:") and "'/vrpn_mocap/ball/posezz'" in line
 
 
-def test_a_bag_whose_timestamp_jumps_ahead_is_refused_not_resampled_into_terabytes(tmp_path, capsys):
-    helpers, table = _bag_case(tmp_path)
-    bag, mapping = tmp_path / "take.mcap", tmp_path / "take.toml"
-    helpers._write_bag(bag, table)
-    mapping.write_text(helpers.BAG_MAPPING)
+def test_a_bag_whose_timestamp_jumps_ahead_is_refused_not_resampled_into_terabytes(tmp_path, capsys, swing_table):
     from dragline.capture import read_tracked_bag
 
     # the last ball sample stamped 3 hours late: a clock of a million steps for 402 samples
-    late = table.copy()
+    late = swing_table.copy()
     late.loc[late.index[-1], "time"] = 3 * 3600.0
-    helpers._write_bag(bag, late)
+    bag, mapping = _write_take(tmp_path, late)
     with pytest.raises(ValueError, match="a timestamp is wrong") as info:
         read_tracked_bag(bag, mapping)
     assert str(bag) in str(info.value)

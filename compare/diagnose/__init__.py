@@ -22,7 +22,7 @@ the work is in one module per concern (docs/diagnosis.md states the method):
 
 from ._diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_diagnosis_json, write_diagnosis_report
 from ._hypotheses import candidate_list
-from ._scale import MachineScale, machine_scale
+from ._scale import FREE_HZ, MachineScale, machine_scale
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
-           "write_diagnosis_report", "candidate_list", "MachineScale", "machine_scale"]
+           "write_diagnosis_report", "candidate_list", "MachineScale", "machine_scale", "FREE_HZ"]

@@ -35,7 +35,8 @@ __all__ = ["MachineScale", "machine_scale", "REFERENCE", "FREE_HZ"]
 # Ks + Kv): ``machine_scale(load_rig())`` gives it to the last bit.
 REFERENCE_SWING_HZ = 0.35231780232859233
 REFERENCE_G = 9.81
-# Below this a mode is a motion nothing resists (a body spinning about its rope), not a swing.
+# Below this a mode is a motion nothing resists (a body spinning about its rope: the differences' noise), not a
+# swing; `dragline rig` prints such a mode as free.
 FREE_HZ = 1e-3
 LENGTH_KINDS = ("position", "rope_length")
 
@@ -79,16 +80,19 @@ def _rounded(ratio):
 REFERENCE = MachineScale()
 
 
-def machine_scale(rig, maneuver=None):
-    """The rig's ``MachineScale``: its slowest swing at rest under the maneuver's first row (default: its own).
+def machine_scale(rig, maneuver=None, modes=None):
+    """The rig's ``MachineScale``: its slowest swing at rest under the maneuver's first row (default: its own),
+    from ``modes`` when they are already at hand (``simulate.linear_modes``, lowest first, the slowest swing among
+    them), else computed at the baseline discretization.
 
     A swing is a mode above ``FREE_HZ`` that a body dominates; a rig with none (a line between fixed
     points, whose slowest mode is elastic, not a swing under gravity) keeps the dragline's scale.
     """
-    maneuver = default_maneuver(rig) if maneuver is None else maneuver
-    t0 = float(maneuver.time[0])
-    model = assemble(rig, maneuver, "baseline", dissipation=False)
-    modes = linear_modes(model, solve_statics(model, t0).state, t0)
+    if modes is None:
+        maneuver = default_maneuver(rig) if maneuver is None else maneuver
+        t0 = float(maneuver.time[0])
+        model = assemble(rig, maneuver, "baseline", dissipation=False)
+        modes = linear_modes(model, solve_statics(model, t0).state, t0)
     swings = [float(f) for f, what in zip(modes.frequency_hz, modes.dominant)
               if f >= FREE_HZ and what.startswith("body ")]
     if not swings:
