@@ -43,7 +43,7 @@ import os
 import numpy as np
 
 from ..capture import CaptureSession, camera_centre, project_points, save_cameras, write_json, write_vicon_csv
-from ..simulate import body_to_inertial, marker_positions, write_trajectory_csv
+from ..simulate import marker_positions, matrix_from_angles, write_trajectory_csv
 from ._layout import NOMINAL_FOCAL_PX, WAND_LENGTH, WAND_VOLUME, lframe_points, wand_motion
 
 __all__ = [
@@ -192,7 +192,8 @@ def body_boxes(table, rig, bodies=None):
     names = list(bodies)
     centres, axes = [], []
     for b in names:
-        T = body_to_inertial(*(np.asarray(table[f"{b}.{q}"], float) for q in ("roll", "pitch", "yaw")))
+        T = matrix_from_angles(*(np.asarray(table[f"{b}.{q}"], float) for q in ("roll", "pitch", "yaw")),
+                               rig.bodies[b].euler_sequence)
         x_cg = np.column_stack([np.asarray(table[f"{b}.{q}"], float) for q in "xyz"])
         centres.append(x_cg - T @ np.asarray(rig.bodies[b].cg_body, float))
         axes.append(T)

@@ -62,7 +62,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ..capture import between_events, read_marker_file, read_session
 from ..simulate import (
-    euler_from_matrix,
+    angles_from_matrix,
     load_rig,
     marker_names,
     rope_channels,
@@ -470,7 +470,7 @@ def trajectory_from_markers(names, positions, rate_hz, rig=None, method="paper",
             T, origin = _rigid_pose(block, mb, method, _paper_triple(mnames))
             locate[body] = lambda pb, T=T, origin=origin: origin + T @ np.asarray(pb, float)
             centre = mass_centre(T, origin, rig.bodies[body].cg_body)
-            roll, pitch, yaw = euler_from_matrix(T)
+            roll, pitch, yaw = angles_from_matrix(T, rig.bodies[body].euler_sequence)
             pqr = _rates(T, dt, smoother, body_rates)
         elif len(mnames) == 2:
             two_marker.append((body, block, mb))

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..simulate import BODY_QUANTITIES, Maneuver, euler_from_matrix
+from ..simulate import BODY_QUANTITIES, Maneuver, angles_from_matrix
 from ._bodies import mass_centre
 from ._rates import body_rates, finite_difference
 from ._reach import check_within_reach
@@ -73,7 +73,7 @@ def tracked_trajectory(poses, rig):
             centre, angles, rates = poses.positions[name] + cg, (nan, nan, nan), np.full((time.size, 3), np.nan)
         else:
             centre = mass_centre(T, poses.positions[name], cg)
-            angles = euler_from_matrix(T)
+            angles = angles_from_matrix(T, rig.bodies[name].euler_sequence)
             rates = body_rates(T, dt)
         velocity = finite_difference(centre, dt)
         values = dict(zip(("x", "y", "z"), centre.T))

@@ -11,10 +11,14 @@ from ._numba_cache import use_source_keyed_cache as _use_source_keyed_cache
 _use_source_keyed_cache(_Path(__file__).parent)  # before any compiled module is imported
 
 from ._kinematics import (
+    EULER_SEQUENCES,
+    PAPER_SEQUENCE,
+    angles_from_matrix,
     body_rates_from_euler_rates,
     body_to_inertial,
     euler_from_matrix,
     euler_rates_from_body_rates,
+    matrix_from_angles,
 )
 from ._markers import body_marker_positions, marker_names, marker_positions
 from ._maneuver import Maneuver, default_maneuver, maneuver_from_table, read_maneuver_csv, write_maneuver_csv

@@ -42,6 +42,7 @@ each keeps its own rho L / 3, a constant, so the energy balance stays exact.
 
 from __future__ import annotations
 
+import math
 from collections import namedtuple
 
 import numpy as np
@@ -80,6 +81,78 @@ def _body_matrix(roll, pitch, yaw, T, b):
     T[b, 2, 1] = ss * st + cs * sf * ct
     T[b, 2, 2] = cf * ct
     return sf, cf, ss, cs
+
+
+# A body's orientation is its chart's matrix times the Euler angles' (Eq. 11): T = ref @ R(roll, pitch,
+# yaw). The angles' rates (Eq. 3) divide by cos(roll); when a body's roll in its chart passes
+# REBASE_ROLL, between two steps, its chart moves to its pose and its angles return to zero, so no
+# body ever comes near the singularity. A body whose chart never moves (every body of the paper's
+# dragline) is computed exactly as before, to the last bit.
+REBASE_ROLL = math.pi / 4.0
+
+
+@njit(cache=True, inline="always")
+def _body_pose(y, b, T, work):
+    """T[b], body to inertial, from the state's angles in the body's chart; the sines and cosines of its roll
+    and yaw there (as ``_body_matrix``)."""
+    trig = _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
+    if work.rebased[b] != 0:
+        ref = work.ref
+        for j in range(3):
+            c0, c1, c2 = T[b, 0, j], T[b, 1, j], T[b, 2, j]
+            for i in range(3):
+                T[b, i, j] = ref[b, i, 0] * c0 + ref[b, i, 1] * c1 + ref[b, i, 2] * c2
+    return trig
+
+
+@njit(cache=True, inline="always")
+def rebase(y, work, nb):
+    """Move the chart of every body whose roll there passed ``REBASE_ROLL`` to its pose (angles to zero).
+
+    Between steps only. ``work.trig`` follows (Verlet's drift reads it).
+    """
+    T = work.pose
+    for b in range(nb):
+        o = 12 * b
+        if abs(y[o + 6]) <= REBASE_ROLL:
+            continue
+        _body_pose(y, b, T, work)
+        for i in range(3):
+            for j in range(3):
+                work.ref[b, i, j] = T[b, i, j]
+        work.rebased[b] = 1
+        y[o + 6] = 0.0
+        y[o + 7] = 0.0
+        y[o + 8] = 0.0
+        work.trig[b, 0], work.trig[b, 1], work.trig[b, 2], work.trig[b, 3] = 0.0, 1.0, 0.0, 1.0
+
+
+@njit(cache=True)
+def chart_start(y, work, nb):
+    """Every body's chart the inertial frame (the state's angles absolute, Eq. 11), then ``rebase``."""
+    for b in range(nb):
+        work.rebased[b] = 0
+        for i in range(3):
+            for j in range(3):
+                work.ref[b, i, j] = 1.0 if i == j else 0.0
+    rebase(y, work, nb)
+
+
+@njit(cache=True)
+def record_state(out, y, work, nb):
+    """``out[:] = y`` with every body's angles absolute again (Eq. 11's sequence, as the state outside a run)."""
+    for i in range(y.shape[0]):
+        out[i] = y[i]
+    T = work.pose
+    for b in range(nb):
+        if work.rebased[b] == 0:
+            continue
+        _body_pose(y, b, T, work)
+        o = 12 * b
+        # ``_kinematics.euler_from_matrix``
+        out[o + 6] = math.atan2(-T[b, 1, 2], math.hypot(T[b, 1, 0], T[b, 1, 1]))
+        out[o + 7] = math.atan2(T[b, 0, 2], T[b, 2, 2])
+        out[o + 8] = math.atan2(T[b, 1, 0], T[b, 1, 1])
 
 
 @njit(cache=True, inline="always")
@@ -319,7 +392,7 @@ def _rhs(t, y, dy, m, work, update):
 
     _fixed_points(t, reel_t, point_pos, fpos, fvel)
     for b in range(nb):
-        trig[b, 0], trig[b, 1], trig[b, 2], trig[b, 3] = _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
+        trig[b, 0], trig[b, 1], trig[b, 2], trig[b, 3] = _body_pose(y, b, T, work)
     _segment_lengths(t, seg_len0, seg_reel, seg_reel_off, reel_t, reel_len, Lseg, dLseg, reel_buf, reel_rate)
     # Verlet (``update``) never reads dF_m/dt, the only use of the element ends' velocities.
     _gather_nodes(y, m, T, fpos, fvel, nx, nv, narm, o_part, o_vel, not update)
@@ -496,7 +569,7 @@ def project(t, y, m, work):
     T, Lseg, dLseg, reel_buf, reel_rate, fpos, fvel = work.T, work.Lseg, work.dLseg, work.reel_buf, work.reel_rate, work.fpos, work.fvel
     _fixed_points(t, m.reel_t, m.point_pos, fpos, fvel)
     for b in range(nb):
-        _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
+        _body_pose(y, b, T, work)
     _segment_lengths(t, m.seg_len0, m.seg_reel, m.seg_reel_off, m.reel_t, m.reel_len, Lseg, dLseg, reel_buf, reel_rate)
     nx = work.nx
     _gather_nodes(y, m, T, fpos, fvel, nx, work.nv, work.narm, o_part, o_vel, False)
@@ -550,7 +623,7 @@ def dissipate(t, y, dt, m, work, geometry_fresh):
     if not geometry_fresh:
         _fixed_points(t, m.reel_t, m.point_pos, fpos, fvel)
         for b in range(nb):
-            _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
+            _body_pose(y, b, T, work)
         _segment_lengths(t, m.seg_len0, m.seg_reel, m.seg_reel_off, m.reel_t, m.reel_len, Lseg, dLseg, reel_buf,
                          reel_rate)
         _gather_nodes(y, m, T, fpos, fvel, work.nx, work.nv, work.narm, o_part, o_vel, False)
@@ -776,6 +849,8 @@ Work = namedtuple("Work", [
     "rest", "rest_rate", "inv_rest",  # (S, spans + 1) element rest length (m), its rate (m/s) and inverse, per
     # segment and side (0: a segment through no ring; j: the span before its ring j, or after its last)
     "cda_seg",  # (S,) each particle's drag area (m^2) per segment
+    "ref", "rebased",  # (nb, 3, 3) each body's chart (T = ref @ R(angles)); (nb,) 1 where it is not the identity
+    "pose",  # (nb, 3, 3) scratch of ``rebase`` and ``record_state``
 ])
 
 
@@ -798,7 +873,9 @@ def make_work(m):
                 seg_gain=np.zeros(S), step=np.zeros(1), slack_changes=np.zeros(1),
                 nx=np.zeros((nodes, 3)), nv=np.zeros((nodes, 3)), nf=np.zeros((nodes, 3)),
                 narm=np.zeros((max(m.bnode_body.shape[0], 1), 3)), rest=np.zeros((S, sides)),
-                rest_rate=np.zeros((S, sides)), inv_rest=np.zeros((S, sides)), cda_seg=np.zeros(S))
+                rest_rate=np.zeros((S, sides)), inv_rest=np.zeros((S, sides)), cda_seg=np.zeros(S),
+                ref=np.zeros((max(nb, 1), 3, 3)), rebased=np.zeros(max(nb, 1), dtype=np.int64),
+                pose=np.zeros((max(nb, 1), 3, 3)))
 
 
 @njit(cache=True, **NO_REFCOUNT)
@@ -867,14 +944,16 @@ def integrate(y0, t0, dt, n_steps, record_every, m, work, max_speed):
     records = np.empty((n_rec, n))
     y = y0.copy()
     k1, k2, k3, k4, tmp = rk4_scratch(n)
-    records[0] = y
     nb = m.nb
+    chart_start(y, work, nb)
+    record_state(records[0], y, work, nb)
     P = m.part_seg.shape[0]
     for step in range(n_steps):
         rk4_step(t0 + step * dt, dt, y, k1, k2, k3, k4, tmp, m, work)
+        rebase(y, work, nb)
         if (step + 1) % record_every == 0:
             status, index = first_bad(y, nb, P, max_speed)
             if status != STATUS_OK:
                 return records[: (step + 1) // record_every], status, step + 1, index
-            records[(step + 1) // record_every] = y
+            record_state(records[(step + 1) // record_every], y, work, nb)
     return records, STATUS_OK, -1, -1

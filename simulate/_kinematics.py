@@ -9,20 +9,82 @@ about the new K::
 The columns of ``T`` are the body axes I_B, J_B, K_B in inertial components,
 so ``r_inertial = T @ r_body`` (Eq. 10). The inertial K axis points down.
 
+A body's output channels (roll, pitch, yaw: the angles about its I, J and K
+axes) may follow another Tait-Bryan sequence, named per body in the rig
+(``euler_sequence``): ``matrix_from_angles`` and ``angles_from_matrix``
+translate. The simulator's state keeps Eq. 11's sequence whatever the
+output's (``_kernel.REBASE_ROLL`` says how it avoids its singularity).
+
 All functions are vectorised over leading (time) axes and never modify their
 inputs. Angles in rad, rates in rad/s.
 """
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 __all__ = [
+    "PAPER_SEQUENCE",
+    "EULER_SEQUENCES",
+    "matrix_from_angles",
+    "angles_from_matrix",
     "body_to_inertial",
     "euler_from_matrix",
     "body_rates_from_euler_rates",
     "euler_rates_from_body_rates",
 ]
+
+# Intrinsic rotations about the body's axes, in order: the paper's pitch (J), then roll (I), then yaw (K).
+PAPER_SEQUENCE = "YXZ"
+# Every sequence of three different axes (Tait-Bryan), so that each angle is a roll, a pitch or a yaw.
+EULER_SEQUENCES = ("YXZ", "ZYX", "XYZ", "XZY", "YZX", "ZXY")
+_ANGLE_OF_AXIS = {"X": 0, "Y": 1, "Z": 2}  # roll about I, pitch about J, yaw about K
+
+
+def matrix_from_angles(roll, pitch, yaw, sequence=PAPER_SEQUENCE):
+    """T_B->I from a body's output angles in its ``sequence`` (``EULER_SEQUENCES``; Eq. 11 for the paper's).
+
+    Returns
+    -------
+    T : ndarray, shape ``S + (3, 3)``
+    """
+    if sequence == PAPER_SEQUENCE:
+        return body_to_inertial(roll, pitch, yaw)
+    from scipy.spatial.transform import Rotation
+
+    angles = np.stack(np.broadcast_arrays(*(np.asarray(a, float) for a in (roll, pitch, yaw))), axis=-1)
+    ordered = angles[..., [_ANGLE_OF_AXIS[a] for a in _checked(sequence)]]
+    flat = Rotation.from_euler(sequence, ordered.reshape(-1, 3)).as_matrix()
+    return flat.reshape(angles.shape[:-1] + (3, 3))
+
+
+def angles_from_matrix(T, sequence=PAPER_SEQUENCE):
+    """A body's output angles (roll, pitch, yaw, rad) in its ``sequence`` from T_B->I.
+
+    The middle rotation lies in [-90, 90] deg, the others in (-180, 180];
+    at the middle one's +-90 deg (the sequence's gimbal lock) the first and
+    last are not apart, and the first is set to zero.
+    """
+    if sequence == PAPER_SEQUENCE:
+        return euler_from_matrix(T)
+    from scipy.spatial.transform import Rotation
+
+    T = np.asarray(T, float)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Gimbal lock detected")
+        ordered = Rotation.from_matrix(T.reshape(-1, 3, 3)).as_euler(_checked(sequence))
+    angles = np.empty_like(ordered)
+    angles[:, [_ANGLE_OF_AXIS[a] for a in sequence]] = ordered
+    angles = angles.reshape(T.shape[:-2] + (3,))
+    return angles[..., 0], angles[..., 1], angles[..., 2]
+
+
+def _checked(sequence):
+    if sequence not in EULER_SEQUENCES:
+        raise ValueError(f"euler sequence {sequence!r} is none of {', '.join(EULER_SEQUENCES)}")
+    return sequence
 
 
 def body_to_inertial(roll, pitch, yaw):

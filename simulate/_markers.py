@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._kinematics import body_to_inertial
+from ._kinematics import matrix_from_angles
 
 __all__ = ["marker_names", "marker_positions", "body_marker_positions"]
 
@@ -25,7 +25,7 @@ def marker_names(rig):
 def body_marker_positions(table, rig, body):
     """Inertial positions of one body's markers from a trajectory table.
 
-    Eq. 10 with the marker's body-frame point: x_B + T_B->I (p - cg).
+    Eq. 10 with the marker's body-frame point: x_B + T_B->I (p - cg), T from the body's output angles.
 
     Returns
     -------
@@ -33,7 +33,7 @@ def body_marker_positions(table, rig, body):
         In the order of ``rig.bodies[body].markers`` (m).
     """
     spec = rig.bodies[body]
-    T = body_to_inertial(table[f"{body}.roll"], table[f"{body}.pitch"], table[f"{body}.yaw"])
+    T = matrix_from_angles(table[f"{body}.roll"], table[f"{body}.pitch"], table[f"{body}.yaw"], spec.euler_sequence)
     centre = np.column_stack([table[f"{body}.{q}"] for q in "xyz"])
     arms = np.array([p - spec.cg_body for p in spec.markers.values()]).reshape(-1, 3)
     return centre[:, None, :] + np.einsum("nij,mj->nmi", T, arms)

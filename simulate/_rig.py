@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._kinematics import PAPER_SEQUENCE
 from ._rig_schema import MAX_PARTICLES, check_rig_doc
 
 __all__ = ["BodySpec", "RopeSpec", "Rig", "RoughPose", "load_rig", "rig_from_dict", "DISCRETIZATION_LEVELS",
@@ -39,6 +40,7 @@ class BodySpec:
     points: dict = field(default_factory=dict)
     markers: dict = field(default_factory=dict)
     position: np.ndarray | None = None  # starting guess for the statics (rigs other than the dragline)
+    euler_sequence: str = "YXZ"  # its output channels' rotation order (``_kinematics.EULER_SEQUENCES``)
 
 
 @dataclass(frozen=True)
@@ -341,6 +343,7 @@ def _body(name, b, source):
         points={k: _vec(v, f"{name}.points.{k}") for k, v in b.get("points", {}).items()},
         markers={k: _vec(v, f"{name}.markers.{k}") for k, v in b.get("markers", {}).items()},
         position=_vec(b["position"], f"{name}.position") if "position" in b else None,
+        euler_sequence=b.get("euler_sequence", PAPER_SEQUENCE),
     )
 
 

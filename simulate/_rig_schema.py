@@ -62,6 +62,9 @@ class Body(_Strict):
     points: dict[str, _Vec3] = Field(default_factory=dict, description="rope attachment points (m)")
     markers: dict[str, _Vec3] = Field(default_factory=dict, description="marker positions (m)")
     position: Optional[_Vec3] = Field(None, description="starting guess for the statics (m, inertial)")
+    euler_sequence: Literal["YXZ", "ZYX", "XYZ", "XZY", "YZX", "ZXY"] = Field(
+        "YXZ", description="the order of the intrinsic rotations (about the body's I, J, K axes: X, Y, Z) its "
+        "output channels roll, pitch and yaw follow; YXZ is the paper's (pitch, roll, yaw), ZYX the aircraft's")
 
     @model_validator(mode="after")
     def _turns(self):

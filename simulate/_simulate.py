@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from . import _kernel
+from ._kinematics import PAPER_SEQUENCE, angles_from_matrix, body_to_inertial, euler_from_matrix, matrix_from_angles
 from ._maneuver import default_maneuver
 from ._model import assemble
 from ._rig import load_rig
@@ -178,8 +179,12 @@ def trajectory_table(model, time, states, extras=True):
         o = 12 * b
         for k, q in enumerate(("x", "y", "z")):
             cols[f"{name}.{q}"] = states[:, o + k]
-        for k, q in enumerate(("roll", "pitch", "yaw")):
-            cols[f"{name}.{q}"] = states[:, o + 6 + k]
+        angles = states[:, o + 6 : o + 9].T
+        sequence = model.rig.bodies[name].euler_sequence
+        if sequence != PAPER_SEQUENCE:
+            angles = angles_from_matrix(body_to_inertial(*angles), sequence)
+        for q, values in zip(("roll", "pitch", "yaw"), angles):
+            cols[f"{name}.{q}"] = values
         for k, q in enumerate(("vx", "vy", "vz")):
             cols[f"{name}.{q}"] = states[:, o + 3 + k]
         for k, q in enumerate(("p", "q", "r")):
@@ -281,7 +286,9 @@ def _held_pose(rig, release):
         if position.shape != (3,) or angles.shape != (3,) or not (np.isfinite(position).all()
                                                                    and np.isfinite(angles).all()):
             raise ValueError(f"the release of {name!r} needs a finite position (3) and angles (3)")
-        held[name] = (position, angles)
+        # given in the body's output sequence; the state's are Eq. 11's
+        turn = matrix_from_angles(*angles, rig.bodies[name].euler_sequence)
+        held[name] = (position, np.array(euler_from_matrix(turn)))
     return held
 
 

@@ -231,7 +231,7 @@ def _release_moved(rig, drawn):
     its points (its rope's eye) where the nominal hold had them, relative to
     the fixed points' mean shift.
     """
-    from ._kinematics import body_to_inertial
+    from ._kinematics import matrix_from_angles
 
     if not rig.release:
         return drawn
@@ -241,7 +241,7 @@ def _release_moved(rig, drawn):
                          for k in rig.fixed_points], axis=0)
     release = {}
     for body, pose in rig.release.items():
-        turn = body_to_inertial(*np.asarray(pose["angles"], float))
+        turn = matrix_from_angles(*np.asarray(pose["angles"], float), rig.bodies[body].euler_sequence)
         cg_shift = np.asarray(drawn.bodies[body].cg_body, float) - np.asarray(rig.bodies[body].cg_body, float)
         release[body] = dict(pose, position=np.asarray(pose["position"], float) + shift + turn @ cg_shift)
     return dataclasses.replace(drawn, release=release)

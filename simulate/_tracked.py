@@ -24,7 +24,10 @@ from ._kernel import (
     STATUS_TOO_STIFF,
     _element_rest,
     _segment_lengths,
+    chart_start,
     first_bad,
+    rebase,
+    record_state,
     rk4_scratch,
     rk4_step,
 )
@@ -199,6 +202,8 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
     substeps = np.zeros(n_records, dtype=np.int64)
     y = y0.copy()
     k1, k2, k3, k4, tmp = rk4_scratch(n)
+    nb = m.nb
+    chart_start(y, work, nb)
     if method == VERLET:
         acc, y_eval = verlet_scratch(t0, y, m, work)
         y_start, acc_start, eps_start = np.empty(n), np.empty(n), np.empty(work.eps.shape[0])
@@ -206,8 +211,8 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
     else:
         acc, y_eval = k1, tmp
         y_start, acc_start, eps_start, trig_start = tmp, tmp, tmp, work.trig
-    records[0] = y
-    nb = m.nb
+    ref_start, rebased_start = work.ref.copy(), work.rebased.copy()
+    record_state(records[0], y, work, nb)
     P = m.part_seg.shape[0]
     total = 0
     tracked = lam0 < np.inf
@@ -227,6 +232,8 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
             acc_start[:] = acc
             eps_start[:] = work.eps
             trig_start[:] = work.trig
+            ref_start[:] = work.ref
+            rebased_start[:] = work.rebased
             work.slack_changes[0] = 0.0
             verlet_steps(t_rec, h, sub, y, acc, y_eval, m, work)
             if work.slack_changes[0] > 0.0 and tracked:
@@ -236,6 +243,8 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
                 acc[:] = acc_start
                 work.eps[:] = eps_start
                 work.trig[:] = trig_start  # the drift reads them (``verlet_steps``)
+                work.ref[:] = ref_start  # the charts the state's angles are in
+                work.rebased[:] = rebased_start
                 fine = int(math.ceil(sub / SLACK_STEP_FACTOR - 1e-9))
                 if total + fine > max_steps:
                     return records[: rec + 1], substeps[: rec + 1], STATUS_TOO_STIFF, t_rec, fine
@@ -246,8 +255,9 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
         else:
             for j in range(sub):
                 rk4_step(t_rec + j * h, h, y, k1, k2, k3, k4, tmp, m, work)
+                rebase(y, work, nb)
         status, index = first_bad(y, nb, P, max_speed)
         if status != STATUS_OK:
             return records[: rec + 1], substeps[: rec + 1], status, t_rec + out_dt, index
-        records[rec + 1] = y
+        record_state(records[rec + 1], y, work, nb)
     return records, substeps, STATUS_OK, np.nan, -1

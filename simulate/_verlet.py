@@ -45,7 +45,7 @@ from numba import njit
 
 from ._kernel import (
     NO_REFCOUNT,
-    _body_matrix,
+    _body_pose,
     _element_rest,
     _fixed_points,
     _gather_nodes,
@@ -53,6 +53,7 @@ from ._kernel import (
     _segment_lengths,
     dissipate,
     _rhs,
+    rebase,
     rhs,
 )
 
@@ -70,7 +71,7 @@ def element_stretch(t, y, m, work, eps):
     Lseg, dLseg = work.Lseg, work.dLseg
     _fixed_points(t, m.reel_t, m.point_pos, fpos, fvel)
     for b in range(m.nb):
-        _body_matrix(y[12 * b + 6], y[12 * b + 7], y[12 * b + 8], T, b)
+        _body_pose(y, b, T, work)
     _segment_lengths(t, m.seg_len0, m.seg_reel, m.seg_reel_off, m.reel_t, m.reel_len, Lseg, dLseg,
                      work.reel_buf, work.reel_rate)
     nx = work.nx
@@ -147,6 +148,7 @@ def verlet_steps(t, h, n, y, acc, y_eval, m, work):
     """
     for j in range(n):
         _step(t + j * h, h, y, acc, y_eval, m, work)
+        rebase(y, work, m.nb)
 
 
 @njit(cache=True, inline="always")

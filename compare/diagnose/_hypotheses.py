@@ -69,8 +69,8 @@ from ...simulate import (
     MECHANISMS,
     SimulationError,
     assemble,
-    body_to_inertial,
     make_mechanism,
+    matrix_from_angles,
     simulate,
     stable_time_step,
 )
@@ -389,7 +389,8 @@ def _reading_shift(result, table, reported, channel):
         moved = np.asarray(reported.bodies[name].cg_body, float) - np.asarray(rig.bodies[name].cg_body, float)
         if not np.any(moved):
             return 0.0
-        T = body_to_inertial(*(np.asarray(table[f"{name}.{a}"], float) for a in ("roll", "pitch", "yaw")))
+        T = matrix_from_angles(*(np.asarray(table[f"{name}.{a}"], float) for a in ("roll", "pitch", "yaw")),
+                               rig.bodies[name].euler_sequence)
         return (T @ moved)[:, "xyz".index(quantity)]
     if quantity == "length" and name in rig.ropes and name in reported.ropes:
         spec = rig.ropes[name]
