@@ -99,18 +99,24 @@ def _marker_figures(names, points, truth_markers, used, cameras, noise_px):
     return out
 
 
+def _lead_body():
+    """The body the figures follow: the rig's first (the dragline's bucket)."""
+    return next(iter(load_rig().bodies))
+
+
 def _table_figures(table, truth, extra=None):
-    cg = np.column_stack([table[f"bucket.{q}"] - truth[f"bucket.{q}"] for q in "xyz"])
-    pitch = (table["bucket.pitch"] - truth["bucket.pitch"] + np.pi) % (2 * np.pi) - np.pi
+    lead = _lead_body()
+    cg = np.column_stack([table[f"{lead}.{q}"] - truth[f"{lead}.{q}"] for q in "xyz"])
+    pitch = (table[f"{lead}.pitch"] - truth[f"{lead}.pitch"] + np.pi) % (2 * np.pi) - np.pi
     out = {
-        "bucket_cg_rms_mm": 1e3 * _rms(np.linalg.norm(cg, axis=1)),
-        "bucket_pitch_rms_deg": float(np.degrees(_rms(pitch))),
-        "bucket_pitch_max_deg": float(np.degrees(np.nanmax(np.abs(pitch)))),
-        "bucket_frames_missing": float(table["bucket.x"].isna().mean()),
-        "bucket_vx_rms": _rms(table["bucket.vx"] - truth["bucket.vx"]),
-        "bucket_pitch_rate_rms": _rms(table["bucket.q"] - truth["bucket.q"]),
+        f"{lead}_cg_rms_mm": 1e3 * _rms(np.linalg.norm(cg, axis=1)),
+        f"{lead}_pitch_rms_deg": float(np.degrees(_rms(pitch))),
+        f"{lead}_pitch_max_deg": float(np.degrees(np.nanmax(np.abs(pitch)))),
+        f"{lead}_frames_missing": float(table[f"{lead}.x"].isna().mean()),
+        f"{lead}_vx_rms": _rms(table[f"{lead}.vx"] - truth[f"{lead}.vx"]),
+        f"{lead}_pitch_rate_rms": _rms(table[f"{lead}.q"] - truth[f"{lead}.q"]),
     }
-    for rope in ("hoist_rope", "drag_rope"):
+    for rope in load_rig().winches.values():
         d = table[f"{rope}.length"] - truth[f"{rope}.length"]
         out[f"{rope}_length_rms_mm"] = 1e3 * _rms(d)
         out[f"{rope}_length_max_mm"] = float(1e3 * np.nanmax(np.abs(d)))
@@ -128,7 +134,8 @@ def _score(det, cameras, names, truth_markers, truth, rate_hz, noise_px, rates=F
         if rates:
             for sm in ("none", "savgol"):
                 t2, _ = trajectory_from_markers(names, points, rate_hz, method=method, smoothing=sm)
-                extra[f"bucket_pitch_rate_rms_{sm}"] = _rms(t2["bucket.q"] - truth["bucket.q"])
+                lead = _lead_body()
+                extra[f"{lead}_pitch_rate_rms_{sm}"] = _rms(t2[f"{lead}.q"] - truth[f"{lead}.q"])
         row[method] = _table_figures(table, truth, extra)
     return row
 
@@ -199,7 +206,8 @@ def bench_reconstruction(seed=0, duration=10.0, rate_hz=200.0, noise_px=None, sp
     }
     for sm in ("none", "running_average", "savgol"):
         table, _ = trajectory_from_markers(names, truth_markers, rate_hz, smoothing=sm)
-        out["smoothing_bias"][f"bucket_pitch_rate_rms_{sm}"] = _rms(table["bucket.q"] - truth["bucket.q"])
+        lead = _lead_body()
+        out["smoothing_bias"][f"{lead}_pitch_rate_rms_{sm}"] = _rms(table[f"{lead}.q"] - truth[f"{lead}.q"])
 
     for k, key in ((1, "one_camera_removed"), (2, "two_cameras_removed")):
         rows = {}

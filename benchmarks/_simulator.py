@@ -55,10 +55,12 @@ def _measure_level(level, repeats, duration):
     fine = min(last[name].dt for name in methods) / 8
     ref = run("verlet", dt=fine).table
 
+    lead = next(iter(rig.bodies))  # the figures follow the rig's first body (the dragline's bucket)
+
     def errors(table):
-        pos = np.stack([table[f"bucket.{c}"] - ref[f"bucket.{c}"] for c in "xyz"], axis=1)
+        pos = np.stack([table[f"{lead}.{c}"] - ref[f"{lead}.{c}"] for c in "xyz"], axis=1)
         return (1e3 * float(np.max(np.linalg.norm(pos, axis=1))),
-                float(np.degrees(np.max(np.abs(table["bucket.pitch"] - ref["bucket.pitch"])))))
+                float(np.degrees(np.max(np.abs(table[f"{lead}.pitch"] - ref[f"{lead}.pitch"])))))
 
     out = {"statics_s": float(np.median(statics)), "simulate_call_s": float(np.median(calls)),
            "states": model.n_state,

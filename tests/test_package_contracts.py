@@ -102,10 +102,8 @@ def test_code_and_tests_cite_only_documents_in_the_repository():
     assert not found, "\n".join(found)
 
 
-# Packages whose code knows kinds, never the dragline's names (issue 35): the
-# benchmarks still read the built-in rig's channels by name, and join this
-# list as they learn to read them from the rig.
-MACHINE_FREE = ["capture", "simulate", "reconstruct", "lab", "pipelines", "compare"]
+# Packages whose code knows kinds, never the dragline's names (issue 35).
+MACHINE_FREE = ["capture", "simulate", "reconstruct", "lab", "pipelines", "compare", "benchmarks"]
 # The dragline's own data inside them: its maneuver generator and the paper's report preset.
 DRAGLINE_DATA = {"simulate/_dig.py", "compare/_paper.py"}
 
