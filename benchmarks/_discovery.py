@@ -514,13 +514,19 @@ def bench_command(args):
     """
     import sys
 
-    cases = None
+    cases, derivation = None, None
     if getattr(args, "limits", False):
         cases = REALISTIC_LIMIT_CASES if getattr(args, "realism", False) else LIMIT_CASES
     elif getattr(args, "realism", False) and getattr(args, "rig", None):
         from ._machine_cases import machine_cases
 
-        cases = machine_cases(args.rig, args.seed)
+        derivation = {}
+        cases = machine_cases(args.rig, args.seed, derivation)
+        for name, how in derivation.items():
+            print(f"{name}: model error {how['model_error_mm']:.3g} mm, effect at {how['plausible'][-1]:g} "
+                  f"{how['effect_at_top_mm']:.3g} mm: " + ("no case (below the edge)" if how["values"] is None else
+                                                          "cases at " + ", ".join(f"{v:.3g}" for v in how["values"])),
+                  file=sys.stderr)
     elif getattr(args, "realism", False):
         cases = realistic_cases(args.seed, quick=bool(getattr(args, "quick", False)))
     report = bench_discovery(cases=cases,
@@ -529,4 +535,6 @@ def bench_command(args):
                              quick=bool(getattr(args, "quick", False)),
                              progress=lambda line: print(line, file=sys.stderr),
                              keep=getattr(args, "keep_diagnoses", None))
+    if derivation:
+        report["magnitudes"] = derivation
     return report, summary_lines(report)

@@ -2,7 +2,9 @@
 
 import math
 
+import numpy as np
 import pytest
+
 from dragline.benchmarks._discovery import MAGNITUDES, REALISTIC_MAGNITUDES, _summarise, default_cases
 from dragline.compare.diagnose._hypotheses import N_GRID
 from dragline.simulate import MECHANISMS
@@ -97,11 +99,15 @@ def test_the_weakest_realistic_magnitudes_move_the_bucket_beyond_the_models_own_
 
 
 def test_every_machine_gets_twenty_cases_with_its_own_candidates_and_no_physics_controls():
-    from dragline.benchmarks._machine_cases import MACHINE_MAGNITUDES, MIN_CASES, MIN_NONE, machine_cases
+    from dragline.benchmarks._machine_cases import DETECTABLE, MIN_CASES, MIN_NONE, machine_cases
 
     seen, by_rig = set(), {}
     for rig in ("pendulum", "slung_load", "gantry_crane"):
-        cases = machine_cases(rig, seed=3)
+        how = {}
+        cases = machine_cases(rig, seed=3, derivation=how)
+        # a candidate has cases exactly where its plausible top moves the markers beyond the edge
+        for name, h in how.items():
+            assert (h["values"] is None) == (h["effect_at_top_mm"] < DETECTABLE * h["model_error_mm"]), (rig, name)
         by_rig[rig] = {c[0] for c in cases}
         assert len(cases) >= MIN_CASES and sum(c[0] is None for c in cases) >= MIN_NONE
         assert all(c[3] == "realistic" and c[4] == rig for c in cases)
@@ -116,7 +122,30 @@ def test_every_machine_gets_twenty_cases_with_its_own_candidates_and_no_physics_
     # a ring (the crane's hook block sheave).
     assert {"chain_link_friction", "pulley_friction"} <= by_rig["gantry_crane"]
     assert not {"chain_link_friction", "pulley_friction"} & (by_rig["pendulum"] | by_rig["slung_load"])
-    assert set(MACHINE_MAGNITUDES) <= seen
+    assert "aero_drag" in seen
+
+
+def test_a_machines_smallest_case_sits_where_the_markers_move_three_times_the_models_own_error():
+    # Measured here on its own: the pendulum's aero drag, whose plausible low end (cd 0.45) moves the ball's
+    # markers less than three times what the finer discretization moves them.
+    from dragline.benchmarks._machine_cases import DETECTABLE, MACHINE_MAGNITUDES, detectable_magnitudes
+    from dragline.simulate import body_marker_positions, default_maneuver, load_rig, make_mechanism, simulate
+
+    rig = load_rig("pendulum")
+    values, info = detectable_magnitudes(rig, "aero_drag", MACHINE_MAGNITUDES["aero_drag"])
+    assert info["edge"] is not None and values[0] == info["edge"] and values[-1] == 3.3
+
+    def markers(level, cd=None):
+        physics = [] if cd is None else [make_mechanism("aero_drag", cd=cd)]
+        table = simulate(rig, default_maneuver(rig), level, physics, duration=rig.demo["duration"],
+                         rate_hz=100.0).motion_table()
+        return body_marker_positions(table, rig, "ball")
+
+    base = markers("baseline")
+    rms = lambda d: np.sqrt(np.mean(np.sum(d**2, axis=-1)))  # noqa: E731
+    own = rms(markers("medium") - base)
+    assert rms(markers("baseline", values[0]) - base) >= DETECTABLE * own
+    assert rms(markers("baseline", values[0] / 1.05) - base) < DETECTABLE * own
 
 
 def test_a_machine_case_is_filmed_in_its_own_lab_and_diagnosed_from_its_session_alone():
