@@ -30,6 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from ._clock import recover_clock
 from ._marker_file import MAX_MISSING_ROWS, MAX_SPAN_FACTOR
+from ._mcap_scan import MAGIC as MCAP_MAGIC
 from ._schema_tools import describe_validation_error, fields_markdown
 
 __all__ = ["TrackedPoses", "TrackedMapping", "read_tracked_table", "read_tracked_bag", "load_tracked_mapping",
@@ -43,6 +44,8 @@ JITTER = 0.01
 # drone's or trolley's position is smooth over a few frames; a longer hole stays missing.
 MAX_POINT_BRIDGE_S = 0.25
 MAX_ROWS = 10_000_000
+# A bag of poses this small decodes in megabytes; a MemoryError reading it is a damaged length field.
+MAX_HONEST_BAG_BYTES = 256 * 2**20
 
 _Column = Union[Annotated[str, Field(min_length=1)], Annotated[int, Field(ge=0, le=100_000)]]
 
@@ -291,6 +294,7 @@ def read_tracked_bag(path, mapping):
     by_topic = {}
     for key, entry in entries.items():
         by_topic.setdefault(entry.topic, []).append(key)
+    _check_bag_ends(path)
     try:
         with open(path, "rb") as stream:
             reader = make_reader(stream, decoder_factories=[DecoderFactory()])  # noqa: SIM117
@@ -309,7 +313,10 @@ def read_tracked_bag(path, mapping):
     except FileNotFoundError:
         raise ValueError(f"bag {path} does not exist") from None
     except MemoryError:
-        raise
+        if os.path.getsize(path) > MAX_HONEST_BAG_BYTES:
+            raise
+        # a bag this small needs megabytes: a length field a damaged byte turned into terabytes
+        raise ValueError(f"bag {path} is damaged: a record claims more memory than the machine has") from None
     except Exception as exc:  # noqa: BLE001 - a damaged bag fails inside the decoders (zstd, lz4, CDR) in their own ways
         raise ValueError(f"bag {path} cannot be read as ROS 2 poses: {' '.join(str(exc).split()) or type(exc).__name__}") from None
     tracks = {}
@@ -323,6 +330,22 @@ def read_tracked_bag(path, mapping):
         a = np.array([row[1:] for row in rows], float)
         tracks[key] = (t, a[:, 0:3], a[:, 3:7] if key[0] == "body" else None)
     return _resampled(path, mapping, tracks, rows=sum(len(r) for r in samples.values()))
+
+
+def _check_bag_ends(path):
+    """ValueError unless the bag opens and closes with MCAP's magic bytes: the reader seeks to the footer at the
+    end, and a cut bag's last bytes read as a record of any length (10,000 fuzzed cases: a MemoryError)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(len(MCAP_MAGIC))
+            fh.seek(max(0, os.path.getsize(path) - len(MCAP_MAGIC)))
+            tail = fh.read(len(MCAP_MAGIC))
+    except FileNotFoundError:
+        raise ValueError(f"bag {path} does not exist") from None
+    if head != MCAP_MAGIC:
+        raise ValueError(f"bag {path} is not an MCAP file (bad magic bytes)")
+    if tail != MCAP_MAGIC or os.path.getsize(path) < 2 * len(MCAP_MAGIC):
+        raise ValueError(f"bag {path} is cut short: it does not end with MCAP's closing magic bytes")
 
 
 def _resampled(path, mapping, tracks, rows):
