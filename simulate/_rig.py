@@ -390,7 +390,9 @@ def _release(table, bodies, source):
         if name not in bodies:
             raise ValueError(f"{source}: release.{name}: no such body")
         out[name] = {"position": _vec(pose["position"], f"release.{name}.position"),
-                     "angles": np.radians(_vec(pose.get("angles_deg", [0.0, 0.0, 0.0]), f"release.{name}.angles_deg"))}
+                     "angles": np.radians(_vec(pose.get("angles_deg", [0.0, 0.0, 0.0]), f"release.{name}.angles_deg")),
+                     "velocity": _vec(pose.get("velocity", [0.0, 0.0, 0.0]), f"release.{name}.velocity"),
+                     "rates": np.radians(_vec(pose.get("rates_deg", [0.0, 0.0, 0.0]), f"release.{name}.rates_deg"))}
     return out
 
 

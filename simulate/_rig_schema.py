@@ -37,6 +37,9 @@ MAX_COORDINATE = 1e4  # m
 MIN_MASS = 1e-6  # kg
 MIN_GYRATION = 1e-6  # m
 MIN_RELAXATION_S = 1e-6
+# A release faster than this is a typo: the simulator calls 100 m/s a blow-up.
+MAX_SPEED = 100.0  # m/s
+MAX_RATE_DEG = 36000.0  # deg/s: a hundred turns a second
 # More sheaves than a 64-part reeving has is a typo (the largest offshore hook blocks run about 20 parts).
 MAX_RINGS = 64
 
@@ -162,11 +165,16 @@ class RoughPose(_Strict):
 
 
 class Release(_Strict):
-    """A body held here at rest, the ropes settled under it, then let go: the rig's own trial starts so."""
+    """A body held here, the ropes settled under it, then let go (at rest, or moving): the rig's own trial starts
+    so."""
 
     position: _Vec3 = Field(description="mass centre (m, inertial)")
     angles_deg: Optional[list[Annotated[float, Field(ge=-360, le=360, allow_inf_nan=False)]]] = Field(
         None, min_length=3, max_length=3, description="roll, pitch, yaw (deg), the output sequence; default level")
+    velocity: Optional[list[Annotated[float, Field(ge=-MAX_SPEED, le=MAX_SPEED, allow_inf_nan=False)]]] = Field(
+        None, min_length=3, max_length=3, description="the mass centre's velocity when let go (m/s); default at rest")
+    rates_deg: Optional[list[Annotated[float, Field(ge=-MAX_RATE_DEG, le=MAX_RATE_DEG, allow_inf_nan=False)]]] = Field(
+        None, min_length=3, max_length=3, description="body rates p, q, r when let go (deg/s); default none")
 
 
 class Report(_Strict):

@@ -12,6 +12,7 @@ from . import _kernel
 from ._kinematics import PAPER_SEQUENCE, angles_from_matrix, body_to_inertial, euler_from_matrix, matrix_from_angles
 from ._maneuver import default_maneuver
 from ._model import assemble
+from ._release import let_go
 from ._rig import load_rig
 from ._statics import solve_statics
 from ._time_step import start_time_step
@@ -391,6 +392,8 @@ def simulate(
         eq = solve_statics(nominal, t0, y0=guess if held is None else None, held=held)
         y0, residual = eq.state, eq.residual
         _check_strain(nominal, y0, t0, "held where its release says" if held else "at rest")
+        if release:
+            y0 = let_go(nominal, y0, t0, release)
     else:
         y0, residual = np.array(initial_state, float), float("nan")
     statics_s = _clock.perf_counter() - clock
