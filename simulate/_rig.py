@@ -319,7 +319,7 @@ def _rig_from_doc(doc, source):
         maneuver=doc.get("maneuver"),
         rough_pose=_rough_pose(doc.get("rough_pose"), bodies, ropes, source),
         release=_release(doc.get("release"), bodies, source),
-        report={k: v if isinstance(v, str) else tuple(v) for k, v in doc.get("report", {}).items()},
+        report={k: v if isinstance(v, str) else tuple(v) for k, v in doc.get("report", {}).items() if v is not None},
         demo=_demo(doc.get("demo"), source),
         lab=doc.get("lab", "volume"),
     )

@@ -84,3 +84,14 @@ def test_the_docs_list_the_trajectory_schema_as_generated():
     doc = (REPO / "docs" / "schemas.md").read_text()
     block = re.search(r"<!-- generated: trajectory schema -->\n(.*?)<!-- end generated -->", doc, re.S).group(1)
     assert block == trajectory_markdown()
+
+
+def test_a_rig_document_whose_report_preset_is_none_loads_as_without_one():
+    # a rig given as a dictionary (not TOML, which has no null): the schema allows None, the reader once failed
+    import tomllib
+
+    from dragline.simulate import rig_from_dict
+
+    doc = tomllib.loads(BUILT_IN)
+    doc.setdefault("report", {})["preset"] = None
+    assert "preset" not in rig_from_dict(doc, "rig.toml").report

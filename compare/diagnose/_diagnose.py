@@ -181,6 +181,7 @@ def diagnosis_of(state):
                       "surrogate_quantile": null.surrogate_quantile, "quantile": NULL_QUANTILE,
                       "n_surrogates": NULL_SURROGATES, "min_improvement": MIN_IMPROVEMENT,
                       "dispersion_kappa": null.kappa, "model_error_allowance": null.allowance,
+                      "own_error_chi2": null.own_error,
                       "excess_chi2_updated": null.excess, "model_error_share": null.share},
         "channels": {c: {"noise": float(rec.noise[j]), "offset": state.offsets[c], "offset_nominal": float(b0[j]),
                          "structure_threshold": structure_threshold(c, rec.noise[j], rec.lowpass_width,

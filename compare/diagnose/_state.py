@@ -69,6 +69,7 @@ class NullTest:
     allowance: float
     excess: float
     share: float
+    own_error: float = 0.0
 
 
 @dataclass(frozen=True)
