@@ -519,7 +519,6 @@ def test_second_mechanism(state):
     if state.update is not None:
         named_excess = problem.evaluate(base_sim)["full"] - problem.n_weighted
         allowance = SECOND_EXCESS_SHARE * max(0.0, named_excess)
-    allowance = max(allowance, state.null.own_error)  # as for the first: not for the model's own error
     second = second_round(problem, ctx, state.runnable, named, base_sim, workers=state.workers, seed=state.seed,
                           progress=state.note, allowance=allowance)
     reason = state.reason
