@@ -310,8 +310,6 @@ def read_tracked_bag(path, mapping):
                 row = (stamp, p.x, p.y, p.z, q.x, q.y, q.z, q.w)
                 for key in by_topic[channel.topic]:
                     samples[key].append(row)
-    except FileNotFoundError:
-        raise ValueError(f"bag {path} does not exist") from None
     except MemoryError:
         if os.path.getsize(path) > MAX_HONEST_BAG_BYTES:
             raise
@@ -338,13 +336,14 @@ def _check_bag_ends(path):
     try:
         with open(path, "rb") as fh:
             head = fh.read(len(MCAP_MAGIC))
-            fh.seek(max(0, os.path.getsize(path) - len(MCAP_MAGIC)))
+            size = fh.seek(0, os.SEEK_END)
+            fh.seek(max(0, size - len(MCAP_MAGIC)))
             tail = fh.read(len(MCAP_MAGIC))
     except FileNotFoundError:
         raise ValueError(f"bag {path} does not exist") from None
     if head != MCAP_MAGIC:
         raise ValueError(f"bag {path} is not an MCAP file (bad magic bytes)")
-    if tail != MCAP_MAGIC or os.path.getsize(path) < 2 * len(MCAP_MAGIC):
+    if tail != MCAP_MAGIC or size < 2 * len(MCAP_MAGIC):
         raise ValueError(f"bag {path} is cut short: it does not end with MCAP's closing magic bytes")
 
 

@@ -40,7 +40,7 @@ class BodySpec:
     points: dict = field(default_factory=dict)
     markers: dict = field(default_factory=dict)
     position: np.ndarray | None = None  # starting guess for the statics (rigs other than the dragline)
-    euler_sequence: str = "YXZ"  # its output channels' rotation order (``_kinematics.EULER_SEQUENCES``)
+    euler_sequence: str = PAPER_SEQUENCE  # its output channels' rotation order (``_kinematics.EULER_SEQUENCES``)
 
 
 @dataclass(frozen=True)

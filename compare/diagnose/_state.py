@@ -69,7 +69,7 @@ class NullTest:
     allowance: float
     excess: float
     share: float
-    own_error: float = 0.0
+    own_error: float
 
 
 @dataclass(frozen=True)
