@@ -17,8 +17,8 @@ measure what a user's code would get.
   blind sessions diagnosed and scored against the physics hidden in them,
   on the dragline or (``--realism --rig NAME``, ``_machine_cases``) another
   built-in machine
-- ``bench_real`` (``real_command``): real slung-load flights diagnosed one
-  by one, each flight's update predicting the others
+- ``bench_real`` (``real_command``): real slung-load flights, each
+  predicted by a diagnosis fitted on all the others together
 
 ``bench_executor.py`` (a script) measures the executors' scheduling cost.
 """

@@ -1,4 +1,4 @@
-"""``dragline bench real --data DIR``: the diagnosis on real flights, and each flight's update tried on the others.
+"""``dragline bench real --data DIR``: real flights, each predicted by a fit on all the others.
 
 The data are the Stormlord slung-load flights (``docs/real-recordings.md``):
 ``DIR/rosbag_NN/dataset.csv`` with the bag's ``metadata.yaml`` beside it,
@@ -7,14 +7,12 @@ flight: its mean row rate from the metadata (``/payload/world_pose``
 messages over the bag's duration), its first ``TRIAL_ROWS`` rows (the
 hover the flight starts from, with the load at rest, then the first moves:
 a trial that starts at rest, as the model does), read through the
-dataset's mapping with the clock recovered from the motion, and diagnosed
-from that file alone.
+dataset's mapping with the clock recovered from the motion.
 
-Then every flight's updated rig predicts every other flight, which it never
-saw: the load's position error (m, RMS over the trial, per-channel means
-removed as the diagnosis removes offsets) of the nominal rig and of the
-rig updated on another flight. Not yet: fits that share parameters over
-several flights (issue 36).
+Leave one flight out: for each flight, the diagnosis fits all the others
+together (the rig's parameters and a mechanism's shared, each flight its
+own offsets) and predicts the one left out with the nominal, the updated
+and the named model.
 """
 
 from __future__ import annotations
@@ -33,7 +31,6 @@ TRIAL_ROWS = 900
 _HERE = Path(__file__).resolve().parent / "real"
 RIG = _HERE / "stormlord.toml"
 MAPPING = _HERE / "stormlord_mapping.toml"
-_CHANNELS = ("load.x", "load.y", "load.z")
 
 
 def find_flights(data):
@@ -79,111 +76,117 @@ def _mapping_at(rate):
     return mapping.model_copy(update={"table": mapping.table.model_copy(update={"rate_hz": float(rate)})})
 
 
-def _updated_rig(rig, doc):
-    """The rig with the diagnosis's updated parameters (its ``calibration`` coordinates)."""
-    from dragline.simulate import apply_parameters, default_maneuver
+def _read_flight(csv, meta, rows, folder, rig):
+    """A flight's first ``rows`` rows as a trajectory table and its maneuver (the drone's measured track)."""
+    from dragline.capture import read_tracked_table
+    from dragline.reconstruct import tracked_trajectory
 
-    coords = {e["parameter"]: e["coordinate"] for e in doc["calibration"]["parameters"]}
-    values = [float(coords.get(p.name, 0.0)) for p in rig.tolerances]
-    return apply_parameters(rig, default_maneuver(rig), rig.tolerances, values)[0]
-
-
-def _prediction_error(rig, table, maneuver):
-    """RMS (m) over the trial of the load's position error, each channel's mean removed."""
-    from dragline.simulate import simulate
-
-    time_ = np.asarray(table["time"], float)
-    run = simulate(rig, maneuver, duration=float(time_[-1] - maneuver.time[0]) + 0.01, rate_hz=100.0)
-    errors = []
-    for ch in _CHANNELS:
-        e = np.interp(time_, run.time, np.asarray(run.table[ch], float)) - np.asarray(table[ch], float)
-        e = e[np.isfinite(e)]
-        errors.append(e - e.mean())
-    return float(np.sqrt(np.mean(np.concatenate(errors) ** 2)))
+    rate = row_rate(meta)
+    path = _trial(csv, rows, folder)
+    table, maneuver = tracked_trajectory(read_tracked_table(path, _mapping_at(rate)), rig)
+    return rate, table, maneuver
 
 
-def bench_real(data, rows=TRIAL_ROWS, progress=None):
-    """Diagnose each flight under ``data`` and predict each flight with every other flight's update.
+def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2):
+    """Leave one flight out: the others fitted together, the one left out predicted, for every flight under ``data``.
 
     Returns
     -------
     dict
-        ``flights`` (per flight: rate, verdict, reason, updated parameters
-        with uncertainty, seconds), ``verdicts`` (verdict -> count),
-        ``parameters`` (per parameter: the estimates' min, median, max over
-        flights), ``predictions`` (per pair: the held-out flight's error
-        for the nominal rig and for the rig updated on the other flight),
-        ``updated_better_share`` (pairs where the update predicts better).
+        ``splits`` (per held-out flight: the flights fitted, the verdict, the
+        reason, the shared parameters with their uncertainty, the held-out
+        flight's RMS residual in its noise units for the nominal, updated
+        and named model, seconds); ``updated_better_share`` and
+        ``named_better_share`` (splits where the updated model predicts the
+        held-out flight better than the nominal one, and the named model
+        better than the updated one, among splits that name one);
+        ``verdicts`` (verdict -> count) and ``verdict_agreement`` (the most
+        common verdict's share); ``parameters`` (per parameter: min, median,
+        max and standard deviation of the estimates over splits, and the
+        median stated uncertainty).
     """
-    from dragline.capture import read_tracked_table
-    from dragline.compare import diagnose_path
-    from dragline.reconstruct import tracked_trajectory
+    from dragline.compare.diagnose import diagnose
     from dragline.simulate import load_rig
 
     note = progress or (lambda line: None)
     rig = load_rig(RIG)
-    flights, trials = [], {}
+    flights = find_flights(data)
+    if len(flights) < 2:
+        raise ValueError(f"{data}: leaving one flight out needs at least two flights, found {len(flights)}")
     with tempfile.TemporaryDirectory(prefix="dragline-real-") as tmp:
-        for name, csv, meta in find_flights(data):
-            rate = row_rate(meta)
-            mapping = _mapping_at(rate)
-            path = _trial(csv, rows, tmp)
-            started = time.perf_counter()
-            try:
-                doc = diagnose_path(path, rig=rig, mapping=mapping, workers=2).doc
-            except ValueError as exc:
-                flights.append({"flight": name, "rate_hz": rate, "verdict": "error", "reason": str(exc)})
-                note(f"{name}: error: {exc}")
-                continue
-            table, maneuver = tracked_trajectory(read_tracked_table(path, mapping), rig)
-            trials[name] = (table, maneuver, _updated_rig(rig, doc))
-            params = {e["parameter"]: {"estimate": e["estimate"], "uncertainty": e["uncertainty"],
-                                       "shift_in_tolerances": e["shift_in_tolerances"],
-                                       "identifiable": e["identifiable"]}
-                      for e in doc["calibration"]["parameters"]}
-            flights.append({"flight": name, "rate_hz": rate, "rows": rows, "verdict": doc["verdict"],
-                            "reason": doc["reason"], "parameters": params,
-                            "seconds": time.perf_counter() - started})
-            note(f"{name}: {doc['verdict']} ({time.perf_counter() - started:.0f} s)")
-    predictions = []
-    for held, (table, maneuver, _) in trials.items():
-        nominal = _prediction_error(rig, table, maneuver)
-        for source, (_, _, updated) in trials.items():
-            if source == held:
-                continue
-            predictions.append({"held_out": held, "updated_on": source, "nominal_m": nominal,
-                                "updated_m": _prediction_error(updated, table, maneuver)})
-    return _summary(flights, predictions)
+        read = {name: _read_flight(csv, meta, rows, tmp, rig) for name, csv, meta in flights}
+    splits = []
+    for held in read:
+        fitted = [name for name in read if name != held]
+        started = time.perf_counter()
+        tables, maneuvers = [read[n][1] for n in fitted], [read[n][2] for n in fitted]
+        try:
+            doc = diagnose(tables, maneuvers, rig=rig, workers=workers, trial_names=fitted,
+                           held_out=[(held, read[held][1], read[held][2])]).doc
+        except ValueError as exc:
+            splits.append({"held_out": held, "fitted": fitted, "verdict": "error", "reason": str(exc)})
+            note(f"without {held}: error: {exc}")
+            continue
+        (predicted,) = doc["held_out"]
+        params = {e["parameter"]: {"estimate": e["estimate"], "uncertainty": e["uncertainty"],
+                                   "shift_in_tolerances": e["shift_in_tolerances"], "identifiable": e["identifiable"]}
+                  for e in doc["calibration"]["parameters"]}
+        splits.append({"held_out": held, "fitted": fitted, "rates_hz": {n: read[n][0] for n in fitted},
+                       "verdict": doc["verdict"], "reason": doc["reason"], "parameters": params,
+                       "held_out_rms_noise": predicted["rms_noise"], "held_out_rms_channels": predicted["rms_channels"],
+                       "seconds": time.perf_counter() - started})
+        rms = predicted["rms_noise"]
+        note(f"without {held}: {doc['verdict']}; held-out RMS (noise units) "
+             + ", ".join(f"{k} {v:.3g}" for k, v in rms.items() if v is not None)
+             + f" ({time.perf_counter() - started:.0f} s)")
+    return _summary(splits)
 
 
-def _summary(flights, predictions):
+def _share(pairs):
+    pairs = [(a, b) for a, b in pairs if a is not None and b is not None]
+    return float(np.mean([a < b for a, b in pairs])) if pairs else None
+
+
+def _summary(splits):
+    done = [s for s in splits if s["verdict"] != "error"]
     verdicts = {}
-    for f in flights:
-        verdicts[f["verdict"]] = verdicts.get(f["verdict"], 0) + 1
+    for s in splits:
+        verdicts[s["verdict"]] = verdicts.get(s["verdict"], 0) + 1
     spread = {}
-    for f in flights:
-        for name, e in (f.get("parameters") or {}).items():
-            spread.setdefault(name, []).append(e["estimate"])
-    parameters = {k: {"min": float(min(v)), "median": float(np.median(v)), "max": float(max(v)), "n": len(v)}
+    for s in done:
+        for name, e in s["parameters"].items():
+            spread.setdefault(name, []).append((e["estimate"], e["uncertainty"]))
+    parameters = {k: {"min": float(min(e for e, _ in v)), "median": float(np.median([e for e, _ in v])),
+                      "max": float(max(e for e, _ in v)), "sd": float(np.std([e for e, _ in v])),
+                      "median_uncertainty": float(np.median([u for _, u in v])), "n": len(v)}
                   for k, v in spread.items()}
-    better = [p["updated_m"] < p["nominal_m"] for p in predictions]
-    return {"flights": flights, "verdicts": verdicts, "parameters": parameters, "predictions": predictions,
-            "updated_better_share": float(np.mean(better)) if better else None,
-            "note": "each flight's first rows diagnosed alone; no parameter is shared between flights yet"}
+    rms = [s["held_out_rms_noise"] for s in done]
+    return {"splits": splits, "verdicts": verdicts,
+            "verdict_agreement": max(verdicts.values()) / len(splits) if splits else None,
+            "parameters": parameters,
+            "updated_better_share": _share([(r.get("updated"), r.get("nominal")) for r in rms]),
+            "named_better_share": _share([(r.get("named"), r.get("updated")) for r in rms if "named" in r]),
+            "note": "each split fits every flight but one together (shared rig and mechanism parameters, each "
+                    "flight its own offsets) and predicts the one left out"}
 
 
 def summary_lines(report):
-    lines = [f"{f['flight']}: {f['verdict']} at {f['rate_hz']:.2f} rows/s" for f in report["flights"]]
-    lines.append("verdicts: " + ", ".join(f"{k} {v}" for k, v in report["verdicts"].items()))
+    lines = []
+    for s in report["splits"]:
+        rms = s.get("held_out_rms_noise") or {}
+        cells = ", ".join(f"{k} {v:.3g}" for k, v in rms.items() if v is not None)
+        lines.append(f"without {s['held_out']}: {s['verdict']}" + (f"; held-out RMS (noise units) {cells}"
+                                                                     if cells else ""))
+    lines.append("verdicts: " + ", ".join(f"{k} {v}" for k, v in report["verdicts"].items())
+                 + f" (agreement {100 * (report['verdict_agreement'] or 0):.0f} %)")
     for name, s in report["parameters"].items():
-        lines.append(f"{name}: {s['min']:.4g} .. {s['median']:.4g} .. {s['max']:.4g} over {s['n']} flights")
-    share = report["updated_better_share"]
-    if share is not None:
-        nominal = np.median([p["nominal_m"] for p in report["predictions"]])
-        updated = np.median([p["updated_m"] for p in report["predictions"]])
-        lines.append(f"a flight's update predicts another flight better than the nominal rig in "
-                     f"{100 * share:.0f} % of {len(report['predictions'])} pairs (median error {nominal:.3f} m "
-                     f"nominal, {updated:.3f} m updated)")
+        lines.append(f"{name}: {s['min']:.4g} .. {s['median']:.4g} .. {s['max']:.4g} (sd {s['sd']:.2g}, stated "
+                     f"+-{s['median_uncertainty']:.2g}) over {s['n']} splits")
+    for key, what in (("updated_better_share", "the updated model predicts the held-out flight better than the "
+                                               "nominal one"),
+                      ("named_better_share", "the named model predicts it better than the updated one")):
+        if report[key] is not None:
+            lines.append(f"{what} in {100 * report[key]:.0f} % of splits")
     return lines
 
 

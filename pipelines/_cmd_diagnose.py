@@ -29,8 +29,13 @@ def add_parser(sub):
                     "quantities, time windows, frequencies, free decay), fit every optional mechanism through "
                     "the simulator, score each on held-out data against what measurement noise alone gives, and "
                     "name one, 'none' (the model fits within noise) or 'unexplained'.")
-    p.add_argument("input", metavar="SESSION_DIR|capture.mcap|export.csv|.c3d|.trc|MEASURED.csv",
-                   help="a session, a VICON-style marker CSV or a measured trajectory table")
+    p.add_argument("input", nargs="+", metavar="SESSION_DIR|capture.mcap|export.csv|.c3d|.trc|MEASURED.csv",
+                   help="a session, a VICON-style marker CSV or a measured trajectory table; several: trials of "
+                        "the machine fitted together (shared rig and mechanism parameters, each trial its own "
+                        "offsets and clock)")
+    p.add_argument("--predict", action="append", default=[], metavar="RECORDING",
+                   help="a trial of the same machine the fit never sees, predicted by the nominal, the updated and "
+                        "the named model (repeatable; read as INPUT is)")
     p.add_argument("--maneuver", default=None, metavar="dig|FILE.csv",
                    help="reel table of the recording (default: the session's; for a CSV, maneuver.csv beside "
                         "it, else the dig maneuver); always checked against the recorded rope lengths")
@@ -60,8 +65,9 @@ def run(args):
     outputs = [p for p in (args.json, args.report) if p]
     for path in outputs:
         check_output_path(path)
-    guard_outputs([*session_inputs(args.input, extra=("cameras.json",)), args.maneuver, args.calibration, args.rig,
-                   args.mapping], files=outputs)
+    recordings = [*args.input, *args.predict]
+    guard_outputs([*(p for path in recordings for p in session_inputs(path, extra=("cameras.json",))), args.maneuver,
+                   args.calibration, args.rig, args.mapping], files=outputs)
     if args.workers < 1:
         raise ValueError("--workers must be at least 1")
     names = None
@@ -69,15 +75,16 @@ def run(args):
         names = [n.strip() for n in args.candidates.split(",") if n.strip()]
         candidate_list(names)  # unknown names: exit 2 before any work
     between = None
-    if args.between:
-        between = between_from_args(args, resolve_recording(args.input, tables=True).kind, args.input)
+    for path in recordings if args.between else ():
+        between = between_from_args(args, resolve_recording(path, tables=True).kind, path)
     rig = rig_from_args(args)
     discretization = discretization_from_args(args, rig)
     say = (lambda msg: None) if args.quiet else (lambda msg: print(f"dragline: {msg}", file=sys.stderr))
     t0 = time.perf_counter()
-    result = diagnose_path(args.input, maneuver=args.maneuver, rig=rig, calibration=args.calibration,
-                           discretization=discretization, candidates=names, workers=executor_from_args(args),
-                           seed=args.seed, progress=say, between=between, mapping=args.mapping)
+    result = diagnose_path(args.input if len(args.input) > 1 else args.input[0], maneuver=args.maneuver, rig=rig,
+                           calibration=args.calibration, discretization=discretization, candidates=names,
+                           workers=executor_from_args(args), seed=args.seed, progress=say, between=between,
+                           mapping=args.mapping, held_out=args.predict)
     write_diagnosis_json(args.json, result.doc)
     if args.report:
         write_diagnosis_report(args.report, result)
@@ -90,6 +97,9 @@ def run(args):
             u = top["uncertainty"].get("std")
             fit = f" ({p} = {top['parameters'][p]:.4g}" + (f" +- {u:.2g})" if u is not None else ")")
         print(f"verdict: {doc['verdict']}{fit}; {doc['reason']}", file=sys.stderr)
+        for entry in doc["held_out"]:
+            rms = ", ".join(f"{k} {v:.3g}" if v is not None else f"{k} failed" for k, v in entry["rms_noise"].items())
+            print(f"held-out {entry['trial']}: RMS residual in noise units: {rms}", file=sys.stderr)
         print(f"{doc['timing']['simulations']} simulations in {time.perf_counter() - t0:.0f} s; wrote "
               + " and ".join(outputs), file=sys.stderr)
     return 0

@@ -32,6 +32,7 @@ from ._locate import LOWPASS_S, structure_threshold
 from ._recording import load_recording
 from ._state import DiagnosisState
 from ._steps import STEPS
+from ._trials import SEPARATOR, split_channel
 from ._summary import before_after_metrics, calibration_doc, free_decay_section, report_channels
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json", "write_diagnosis_report"]
@@ -83,17 +84,24 @@ class Diagnosis:
 
 
 def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candidates=None, workers=2,
-             seed=0, source=None, progress=None):
+             seed=0, source=None, progress=None, trial_names=None, held_out=()):
     """Diagnose a measured trajectory table against the nominal model.
 
     Parameters
     ----------
-    measured : pandas.DataFrame
+    measured : pandas.DataFrame or list of them
         Measured trajectory table (docs/conventions.md), any clock: aligned to the
-        simulation from the rope lengths.
-    maneuver : Maneuver, optional
+        simulation from the rope lengths. A list: several trials of the
+        machine, fitted together (``_trials``): the rig's parameters and a
+        mechanism's are shared, each trial keeps its own offsets and clock.
+    maneuver : Maneuver or list of them, optional
         The maneuver of the recording (the rig's own by default: the dig for
-        the built-in rig).
+        the built-in rig); one per trial for several.
+    trial_names : sequence of str, optional
+        The trials' names (``trial 1``, ... by default); no name may hold "/".
+    held_out : sequence of (str, DataFrame, Maneuver)
+        Trials the fit never sees, predicted at the end by the nominal, the
+        updated and the named model (the document's ``held_out``).
     rig : Rig, optional
     discretization : str or dict
         Of every simulation (``baseline`` by default).
@@ -141,12 +149,59 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         no free decay.
     """
     rig = load_rig() if rig is None else rig
-    state = DiagnosisState(measured=measured, rig=rig, maneuver=default_maneuver(rig) if maneuver is None else maneuver,
-                           discretization=discretization, candidate_names=candidates, workers=workers, seed=seed,
-                           source=source, note=progress, started=_time.perf_counter())
+    measured, maneuver, trial_names = _trials_of(measured, maneuver, rig, trial_names)
+    held_out = tuple((str(name), table, default_maneuver(rig) if man is None else man)
+                     for name, table, man in held_out)
+    state = DiagnosisState(measured=measured, rig=rig, maneuver=maneuver, discretization=discretization,
+                           candidate_names=candidates, workers=workers, seed=seed, source=source, note=progress,
+                           started=_time.perf_counter(), trial_names=trial_names, held_out=held_out)
     for step in STEPS:
         state = step(state)
     return diagnosis_of(state)
+
+
+def _trials_of(measured, maneuver, rig, names):
+    """``(measured, maneuver, trial names or None)``: one recording as itself, several as lists."""
+    if not isinstance(measured, (list, tuple)):
+        return measured, default_maneuver(rig) if maneuver is None else maneuver, None
+    n = len(measured)
+    maneuvers = list(maneuver) if isinstance(maneuver, (list, tuple)) else [maneuver] * n
+    names = [f"trial {k + 1}" for k in range(n)] if names is None else [str(x) for x in names]
+    if n == 0 or len(maneuvers) != n or len(names) != n:
+        raise ValueError(f"{n} trials need as many maneuvers and names ({len(maneuvers)} and {len(names)} given)")
+    if len(set(names)) < n or any(SEPARATOR in x for x in names):
+        raise ValueError(f"trial names must be distinct and hold no {SEPARATOR!r}: {names}")
+    maneuvers = [default_maneuver(rig) if m is None else m for m in maneuvers]
+    if n == 1:
+        return measured[0], maneuvers[0], None
+    return list(measured), maneuvers, tuple(names)
+
+
+def _trial_sections(rec, channels, measured, nominal, fitted, shown, updated, decay_channels):
+    """The free decay and the metrics, each trial over its own stop (one recording: over its stop)."""
+    if not rec.trials:
+        return (free_decay_section(rec.time, channels, measured, nominal, fitted, shown, rec.t_stop, updated=updated,
+                                   decay_channels=decay_channels),
+                before_after_metrics(rec.time, channels, measured, nominal, fitted, shown, rec.t_stop))
+    decay, metrics = None, None
+    for trial in rec.trials:
+        cols = [j for j, c in enumerate(channels) if split_channel(c)[0] == trial["name"]]
+        rows = slice(0, trial["rows"])
+
+        def part(a):
+            return None if a is None else a[rows][:, cols]
+
+        names = [channels[j] for j in cols]
+        stop = trial["reels_stop_stacked"]
+        d = free_decay_section(rec.time[rows], names, part(measured), part(nominal), part(fitted), shown, stop,
+                               updated=part(updated), decay_channels=[c for c in decay_channels if c in names])
+        m = before_after_metrics(rec.time[rows], names, part(measured), part(nominal), part(fitted), shown, stop)
+        if decay is None:
+            decay, metrics = d, m
+        else:
+            decay["channels"].update(d["channels"])
+            metrics["channels"].update(m["channels"])
+    return decay, metrics
 
 
 def diagnosis_of(state):
@@ -160,6 +215,8 @@ def diagnosis_of(state):
     second = state.second
     b0, shift0, _ = state.nominal_nuisance
     discretization = state.discretization
+    decay, metrics = _trial_sections(rec, channels, measured, nominal, fitted, shown, updated,
+                                     report_channels(state.rig, channels, "decay_channels"))
     doc = {
         "schema": SCHEMA,
         "verdict": state.verdict,
@@ -173,10 +230,8 @@ def diagnosis_of(state):
         "hypotheses": state.hypotheses,
         "second_mechanism": second,
         "skipped": state.skipped,
-        "free_decay": free_decay_section(time, channels, measured, nominal, fitted, shown, rec.t_stop,
-                                         updated=updated,
-                                         decay_channels=report_channels(state.rig, channels, "decay_channels")),
-        "metrics": before_after_metrics(time, channels, measured, nominal, fitted, shown, rec.t_stop),
+        "free_decay": decay,
+        "metrics": metrics,
         "null_test": {"threshold": null.threshold, "noise_threshold": null.noise_threshold,
                       "surrogate_quantile": null.surrogate_quantile, "quantile": NULL_QUANTILE,
                       "n_surrogates": NULL_SURROGATES, "min_improvement": MIN_IMPROVEMENT,
@@ -191,6 +246,8 @@ def diagnosis_of(state):
         "alignment": {"time_offset": rec.offset, "time_shift_nominal": float(shift0),
                       "ropes": rec.alignment["ropes"], "reels_stop": float(rec.t_stop),
                       "reels_stop_method": rec.stop_method},
+        "trials": rec.trials,
+        "held_out": state.predictions,
         "source": state.source or {},
         "settings": {"discretization": discretization if isinstance(discretization, str) else dict(discretization),
                      "candidates": [c["name"] for c in state.candidates], "decay_weight": DECAY_WEIGHT,
@@ -213,23 +270,59 @@ def diagnosis_of(state):
 
 
 def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretization="baseline", candidates=None,
-                  workers=2, seed=0, progress=None, between=None, mapping=None):
-    """:func:`load_recording` then :func:`diagnose`: what ``dragline diagnose`` runs."""
+                  workers=2, seed=0, progress=None, between=None, mapping=None, held_out=()):
+    """:func:`load_recording` then :func:`diagnose`: what ``dragline diagnose`` runs.
+
+    ``path`` may be a list: several trials of the machine, fitted together;
+    ``held_out`` lists recordings the fit never sees, predicted at the end.
+    Each is read as ``path`` is (same maneuver option, calibration, cut and
+    mapping); a trial's name is its file's stem.
+    """
     started = _time.perf_counter()
     rig = load_rig() if rig is None else rig
-    table, man, source = load_recording(path, maneuver, rig, calibration, progress, between, mapping)
+    paths = list(path) if isinstance(path, (list, tuple)) else [path]
+    names = trial_names_of([*paths, *held_out])
+    loaded_all = [load_recording(p, maneuver, rig, calibration, progress, between, mapping)
+                  for p in [*paths, *held_out]]
+    fitted, predicted = loaded_all[:len(paths)], loaded_all[len(paths):]
     loaded = _time.perf_counter() - started
+    by_name = dict(zip(names, [*paths, *held_out]))
+    if len(paths) == 1:
+        table, man, source = fitted[0]
+        args = (table, man)
+    else:
+        source = {"trials": [{"trial": name, **src} for name, (_, _, src) in zip(names, fitted)]}
+        args = ([t for t, _, _ in fitted], [m for _, m, _ in fitted])
+    spare = [(name, t, m) for name, (t, m, _) in zip(names[len(paths):], predicted)]
     try:
-        result = diagnose(table, man, rig, discretization, candidates, workers, seed, source, progress)
+        result = diagnose(*args, rig, discretization, candidates, workers, seed, source, progress,
+                          trial_names=names[:len(paths)] if len(paths) > 1 else None, held_out=spare)
     except (StaticsError, SimulationError):
         raise  # about the rig or the maneuver, not the recording
     except ValueError as exc:
-        if str(path) in str(exc):
+        message = str(exc)
+        for name, p in by_name.items():
+            for lead in (f"trial {name}: ", f"held-out trial {name}: "):
+                if message.startswith(lead):
+                    raise ValueError(f"{p}: {message[len(lead):]}") from None
+        if any(str(p) in message for p in by_name.values()):
             raise
-        raise ValueError(f"{path}: {exc}") from None  # the checks of diagnose() are about the recording
+        raise ValueError(f"{paths[0] if len(paths) == 1 else ', '.join(map(str, paths))}: {message}") from None
     result.doc["timing"]["load_seconds"] = loaded
     result.doc["timing"]["total_seconds"] = _time.perf_counter() - started
     return result
+
+
+def trial_names_of(paths):
+    """A distinct name per recording: its file's stem, with its folder's name where stems repeat."""
+    from pathlib import Path
+
+    stems = [Path(p).stem for p in paths]
+    if len(set(stems)) < len(stems):
+        stems = [f"{Path(p).resolve().parent.name}-{Path(p).stem}" for p in paths]
+    if len(set(stems)) < len(stems):
+        stems = [f"{k + 1}-{s}" for k, s in enumerate(stems)]
+    return [s.replace(SEPARATOR, "-") for s in stems]
 
 
 def write_diagnosis_json(path, doc):

@@ -74,6 +74,7 @@ from ...simulate import (
     simulate,
     stable_time_step,
 )
+from ._trials import first_maneuver, split_channel, stack_trials, trial_contexts
 
 __all__ = [
     "candidate_list",
@@ -191,8 +192,8 @@ class Problem:
         Measured channels (SI), NaN where not measured.
     sigma : ndarray (c,)
         Noise level per channel.
-    t_stop : float
-        When the reels stop (s).
+    t_stop : float or ndarray (c,)
+        When the reels stop (s); per channel for stacked trials (``_trials``).
     regressors : sequence of ndarray (n, c), optional
         Further nuisance directions fitted linearly with every simulation
         (``_updating``: the rig parameters' sensitivities and the model's
@@ -215,14 +216,15 @@ class Problem:
         self.measured = np.asarray(measured, float)
         self.sigma = np.asarray(sigma, float)
         self.valid = np.isfinite(self.measured)
-        w = np.where(self.time >= t_stop, DECAY_WEIGHT, 1.0)
+        # Each channel's own stop (stacked trials, ``_trials``), or one for all.
+        w = np.where(self.time[:, None] >= np.asarray(t_stop, float), DECAY_WEIGHT, 1.0)
         # Weight of each squared residual: sample weight / sigma^2, 0 if unmeasured.
-        self.W = w[:, None] * self.valid / self.sigma[None, :] ** 2
+        self.W = w * self.valid / self.sigma[None, :] ** 2
         fold = (np.floor((self.time - self.time[0]) / BLOCK_S).astype(int) % 2).astype(bool)
         self.folds = {"A": ~fold, "B": fold, "all": np.ones_like(fold)}
-        self.n_weighted = float((w[:, None] * self.valid).sum())
+        self.n_weighted = float((w * self.valid).sum())
         self.m0 = np.where(self.valid, self.measured, 0.0)
-        self.t_stop = float(t_stop)
+        self.t_stop = t_stop
         self.shift_center = float(shift_center)
         self.regressors = np.array([np.where(self.valid, x, 0.0) for x in regressors], float).reshape(
             len(regressors), *self.measured.shape)
@@ -346,12 +348,15 @@ def simulate_channels(name, main, value, ctx=None):
     physics = list(c.get("base_physics", ()))  # a mechanism already named (second round)
     if value != 0.0 and name is not None:
         physics.append(make_mechanism(name, **{main: value}))
-    try:
-        res = simulate(c["rig"], c["maneuver"], c["discretization"], physics, duration=c["duration"],
-                       rate_hz=c["rate_hz"], initial_state=c["initial_state"])
-    except (SimulationError, FloatingPointError):
-        return None
-    return channels_on(res, c)
+    sims = []
+    for trial in trial_contexts(c):
+        try:
+            res = simulate(c["rig"], trial["maneuver"], c["discretization"], physics, duration=trial["duration"],
+                           rate_hz=c["rate_hz"], initial_state=trial["initial_state"])
+        except (SimulationError, FloatingPointError):
+            return None
+        sims.append(channels_on(res, trial))
+    return stack_trials(c, sims)
 
 
 def channels_on(result, ctx):
@@ -384,7 +389,7 @@ def channels_on(result, ctx):
 def _reading_shift(result, table, reported, channel):
     """What reading a simulated channel with the ``reported`` rig's geometry adds to it (SI, per record)."""
     rig = result.model.rig
-    name, _, quantity = channel.partition(".")
+    name, _, quantity = split_channel(channel)[1].partition(".")
     if name in rig.bodies and quantity in ("x", "y", "z") and name in reported.bodies:
         moved = np.asarray(reported.bodies[name].cg_body, float) - np.asarray(rig.bodies[name].cg_body, float)
         if not np.any(moved):
@@ -496,12 +501,13 @@ def fit_candidates(problem, ctx, candidates, nominal_sim, workers=2, progress=No
     nominal_eval = problem.evaluate(nominal_sim)
     points = {c["name"]: [(0.0, nominal_sim, nominal_eval)] for c in candidates}
     jobs, costs = [], []
-    nominal_step = stable_time_step(assemble(ctx["rig"], ctx["maneuver"], ctx["discretization"]))
+    maneuver = first_maneuver(ctx)
+    nominal_step = stable_time_step(assemble(ctx["rig"], maneuver, ctx["discretization"]))
     for c in candidates:
         lo, hi = c.get("searched", c["range"])
         for x in np.linspace(math.log(lo), math.log(hi), N_GRID if hi > lo else 1):
             jobs.append((c["name"], c["main"], float(math.exp(x))))
-            costs.append(cost_ratio(c, float(math.exp(x)), ctx["rig"], ctx["maneuver"], ctx["discretization"],
+            costs.append(cost_ratio(c, float(math.exp(x)), ctx["rig"], maneuver, ctx["discretization"],
                                     nominal_step))
     # Longest first: two workers finish together.
     jobs = [jobs[i] for i in np.argsort(-np.array(costs), kind="stable")]

@@ -45,6 +45,14 @@ def _summary_lines(doc):
     for rope, r in al["ropes"].items():
         lines.append(f"  {rope}: {1000 * r['residual_rms']:.1f} mm RMS about a {1000 * r['bias']:+.1f} mm bias "
                      "(recording vs nominal simulation)")
+    if doc.get("trials"):
+        lines.append(f"{len(doc['trials'])} trials fitted together (shared rig and mechanism, each its own offsets): "
+                     + ", ".join(f"{t['name']} ({t['rows']} samples)" for t in doc["trials"]))
+    if doc.get("held_out"):
+        lines += ["", "Held-out trials, never fitted: RMS residual in their own noise units (offsets removed):"]
+        for e in doc["held_out"]:
+            cells = "  ".join(f"{k} {v:.3f}" if v is not None else f"{k} failed" for k, v in e["rms_noise"].items())
+            lines.append(f"  {e['trial']:<20}{cells}")
     nt = doc["null_test"]
     lines += ["", f"Null test: held-out improvement threshold {nt['threshold']:.1f} (chi2 units): "
                   f"{100 * nt['quantile']:.0f}th percentile of {nt['n_surrogates']} noise surrogates "

@@ -42,6 +42,9 @@ class Recording:
         Samples of the structure low-pass.
     scale : MachineScale
         The machine's own scale, at which the diagnosis's floors are taken (``_scale``).
+    trials : list of dict
+        Several trials stacked (``_trials``): each one's ``name``, ``channels``,
+        ``rows`` and its own alignment; empty for one recording.
     """
 
     time: np.ndarray
@@ -56,6 +59,7 @@ class Recording:
     windows: list
     lowpass_width: int
     scale: object
+    trials: list = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -76,7 +80,10 @@ class NullTest:
 class DiagnosisState:
     """A diagnosis in progress: the inputs, then each step's results.
 
-    Inputs: ``measured`` (trajectory table), ``rig``, ``maneuver``,
+    Inputs: ``measured`` (trajectory table; a list of them for several
+    trials of the machine, named by ``trial_names``), ``rig``, ``maneuver``
+    (a list, one per trial), ``held_out`` (``(name, table, maneuver)`` of
+    trials the fit never sees, predicted at the end),
     ``discretization``, ``candidate_names`` (None: every candidate),
     ``workers`` (int or Executor), ``seed``, ``source``, ``note``
     (progress callable) and ``started`` (perf_counter at the start).
@@ -92,8 +99,11 @@ class DiagnosisState:
     source: dict | None = None
     note: object = None
     started: float = 0.0
+    trial_names: tuple | None = None
+    held_out: tuple = ()
 
-    # align_recording: the recording, the nominal run, the problem on the nominal rig
+    # align_recording: the recording, the nominal run, the problem on the nominal rig; the held-out trials aligned
+    held_aligned: list = field(default_factory=list)
     recording: Recording | None = None
     nominal_run: object = None
     nominal_sim: np.ndarray | None = None
@@ -139,3 +149,5 @@ class DiagnosisState:
     verdict: str | None = None
     reason: str = ""
     second: dict | None = None
+    # predict_held_out
+    predictions: list = field(default_factory=list)

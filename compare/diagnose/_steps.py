@@ -15,7 +15,8 @@
 9. ``locate_after``: what the best significant candidate leaves;
 10. ``judge_offsets``: constant offsets no parameter explains;
 11. ``decide_verdict``: the rules of ``_decide``;
-12. ``test_second_mechanism``: the others on top of a named one.
+12. ``test_second_mechanism``: the others on top of a named one;
+13. ``predict_held_out``: trials the fit never saw, predicted (``_predict``).
 
 Each step returns a new state (``dataclasses.replace``) and leaves its
 input as it was.
@@ -54,9 +55,11 @@ from ._recording import (
     moving_channels,
     rope_bias_allowance,
 )
+from ._predict import held_out_entry
 from ._scale import machine_scale
 from ._second_round import second_round
 from ._state import NullTest, Recording
+from ._trials import SEPARATOR, first_maneuver
 from ._summary import significant_updates, stated_uncertainty, structure_energy
 from ._updating import (
     OFFSET_FINDING,
@@ -90,15 +93,96 @@ def _note(state, message):
 
 
 def align_recording(state):
-    """The nominal run, the recording on its clock, the channels and their noise, the fitting problem."""
-    measured, rig, maneuver = state.measured, state.rig, state.maneuver
+    """The nominal run, the recording on its clock, the channels and their noise, the fitting problem.
+
+    Several trials (``state.trial_names``): each aligned as one would be, then
+    stacked side by side (``_trials``).
+    """
+    held = []
+    for name, measured, maneuver in state.held_out:
+        # Checked before any fit: a held-out trial the model cannot read fails now, not after the diagnosis.
+        try:
+            held.append(_aligned_trial(state, measured, maneuver))
+        except ValueError as exc:
+            raise ValueError(f"held-out trial {name}: {exc}") from None
+    state = replace(state, held_aligned=held)
+    if state.trial_names is None:
+        one = _aligned_trial(state, state.measured, state.maneuver)
+        recording = Recording(time=one["time"], channels=one["channels"], values=one["values"], noise=one["noise"],
+                              rate_hz=one["rate"], t_stop=one["t_stop"], stop_method=one["stop_method"],
+                              offset=one["offset"], alignment=one["alignment"], windows=one["windows"],
+                              lowpass_width=one["lowpass_width"], scale=one["scale"])
+        ctx = dict(one["ctx"], initial_state=one["nominal_run"].states[0])
+        problem = Problem(one["time"], one["values"], one["noise"], one["t_stop"])
+        return replace(state, recording=recording, nominal_run=one["nominal_run"], nominal_sim=one["nominal_sim"],
+                       plain_problem=problem, nominal_ctx=ctx, problem=problem, ctx=ctx)
+    trials = []
+    for name, measured, maneuver in zip(state.trial_names, state.measured, state.maneuver):
+        try:
+            trials.append(_aligned_trial(state, measured, maneuver, rate=trials[0]["rate"] if trials else None))
+        except ValueError as exc:
+            raise ValueError(f"trial {name}: {exc}") from None
+    return _stacked(state, trials)
+
+
+def _stacked(state, trials):
+    """Several aligned trials as one recording and one simulation context (``_trials``)."""
+    first, names = trials[0], state.trial_names
+    n = max(t["time"].size for t in trials)
+    dt = 1.0 / first["rate"]
+    time = first["time"][0] + dt * np.arange(n)
+    channels, columns, c = [], [], 0
+    for name, t in zip(names, trials):
+        channels += [f"{name}{SEPARATOR}{ch}" for ch in t["channels"]]
+        columns.append(np.arange(c, c + len(t["channels"])))
+        c += len(t["channels"])
+    values, nominal_sim = np.full((n, c), np.nan), np.empty((n, c))
+    for t, cols in zip(trials, columns):
+        rows = t["time"].size
+        values[:rows, cols] = t["values"]
+        nominal_sim[:rows, cols] = t["nominal_sim"]
+        nominal_sim[rows:, cols] = t["nominal_sim"][-1]
+    noise = np.concatenate([t["noise"] for t in trials])
+    t_stops = np.concatenate([np.full(len(t["channels"]), t["t_stop"] - t["time"][0] + time[0]) for t in trials])
+    # The windows where a mismatch is located are the first trial's phases, with the earliest stop.
+    t_stop = float(t_stops.min())
+    recording = Recording(
+        time=time, channels=channels, values=values, noise=noise, rate_hz=first["rate"], t_stop=t_stop,
+        stop_method=first["stop_method"], offset=first["offset"], alignment=first["alignment"],
+        windows=time_windows(state.maneuver[0], t_stop, float(time[-1])), lowpass_width=first["lowpass_width"],
+        scale=first["scale"],
+        trials=[{"name": name, "channels": list(t["channels"]), "rows": int(t["time"].size),
+                 "time_offset": t["offset"], "reels_stop": t["t_stop"], "reels_stop_method": t["stop_method"],
+                 "reels_stop_stacked": float(t["t_stop"] - t["time"][0] + time[0]), "ropes": t["alignment"]["ropes"]}
+                for name, t in zip(names, trials)])
+    ctx = dict(first["ctx"], maneuver=tuple(state.maneuver), channels=channels, time=time,
+               initial_state=tuple(t["nominal_run"].states[0] for t in trials),
+               trials=tuple({"name": name, "time": t["time"], "channels": t["channels"], "rows": t["time"].size,
+                             "duration": t["ctx"]["duration"], "columns": cols}
+                            for name, t, cols in zip(names, trials, columns)))
+    problem = Problem(time, values, noise, t_stops)
+    return replace(state, recording=recording, nominal_run=first["nominal_run"], nominal_sim=nominal_sim,
+                   plain_problem=problem, nominal_ctx=ctx, problem=problem, ctx=ctx)
+
+
+def _aligned_trial(state, measured, maneuver, rate=None):
+    """One recording on the model's clock: its channels, noise, nominal run and simulation context.
+
+    ``rate``: the rate (Hz) every trial is read at; a table sampled at another
+    rate is resampled to it, from its own first sample.
+    """
+    rig = state.rig
     check_table(measured, "measured table")
     channels = check_channels(measured, rig)
     t_meas = np.asarray(measured["time"], float)
     step = float(np.median(np.diff(t_meas)))
     if np.max(np.abs(np.diff(t_meas) - step)) > 0.01 * step:
         raise ValueError("the measured table's time is not uniformly sampled")
-    rate = round(1.0 / step, 6)
+    if rate is not None and abs(step * rate - 1.0) > 1e-9:
+        measured = _resampled(measured, rate)
+        t_meas = np.asarray(measured["time"], float)
+    else:
+        rate = round(1.0 / step, 6)
     t0 = float(maneuver.time[0])
 
     # Long enough for any clock offset searched.
@@ -136,18 +220,27 @@ def align_recording(state):
                                                 np.ascontiguousarray(nominal_sim[:, cols]))
     duration = float(time[-1] - t0) + 1.0 / rate
     dt = float(time[1] - time[0])
-    recording = Recording(time=time, channels=channels, values=values, noise=sigma, rate_hz=rate, t_stop=t_stop,
-                          stop_method=stop_method, offset=offset, alignment=estimate,
-                          windows=time_windows(maneuver, t_stop, float(time[-1])),
-                          lowpass_width=scale.lowpass_width(LOWPASS_S, dt), scale=scale)
     ctx = {"rig": rig, "maneuver": maneuver, "discretization": state.discretization, "duration": duration,
-           "rate_hz": rate, "initial_state": nominal_run.states[0], "time": time, "channels": channels,
-           "nominal_dt": float(nominal_run.dt), "parameters": tuple(rig.tolerances),
+           "rate_hz": rate, "time": time, "channels": channels, "nominal_dt": float(nominal_run.dt),
+           "parameters": tuple(rig.tolerances),
            # The recording was reconstructed with this rig's geometry (``channels_on``).
            "reported_rig": rig, "scale": scale}
-    problem = Problem(time, values, sigma, t_stop)
-    return replace(state, recording=recording, nominal_run=nominal_run, nominal_sim=nominal_sim,
-                   plain_problem=problem, nominal_ctx=ctx, problem=problem, ctx=ctx)
+    return {"time": time, "channels": channels, "values": values, "noise": sigma, "rate": rate, "t_stop": t_stop,
+            "stop_method": stop_method, "offset": offset, "alignment": estimate, "scale": scale,
+            "windows": time_windows(maneuver, t_stop, float(time[-1])),
+            "lowpass_width": scale.lowpass_width(LOWPASS_S, dt), "nominal_run": nominal_run,
+            "nominal_sim": nominal_sim, "ctx": ctx}
+
+
+def _resampled(measured, rate):
+    """A uniformly sampled table at ``rate`` (Hz) from its own first sample, each column interpolated linearly."""
+    t = np.asarray(measured["time"], float)
+    new = t[0] + np.arange(int(np.floor((t[-1] - t[0]) * rate + 1e-9)) + 1) / rate
+    out = {"time": new}
+    for c in measured.columns:
+        if c != "time":
+            out[c] = np.interp(new, t, np.asarray(measured[c], float), left=np.nan, right=np.nan)
+    return measured.__class__(out)
 
 
 def _clock(measured, nominal_table, rig, maneuver):
@@ -236,12 +329,13 @@ def fit_mechanisms(state):
     """Each runnable candidate fitted through the simulator on top of the updated model."""
     cands = candidate_list(state.candidate_names)
     skipped, runnable = [], []
+    maneuver = first_maneuver(state.nominal_ctx)
     for c in cands:
-        why = unavailable_reason(c, state.rig, state.maneuver, state.discretization)
+        why = unavailable_reason(c, state.rig, maneuver, state.discretization)
         if why:
             skipped.append({"name": c["name"], "reason": why})
             continue
-        c["searched"] = affordable_range(c, state.rig, state.maneuver, state.discretization)
+        c["searched"] = affordable_range(c, state.rig, maneuver, state.discretization)
         runnable.append(c)
     _note(state, f"fitting {len(runnable)} candidate mechanisms ({', '.join(c['name'] for c in runnable)})")
     points = fit_candidates(state.problem, state.ctx, runnable, state.base_sim, workers=state.workers,
@@ -531,5 +625,15 @@ def test_second_mechanism(state):
     return replace(state, second=second, reason=reason)
 
 
+def predict_held_out(state):
+    """The trials the fit never saw, predicted by the nominal, the updated and the named model (``_predict``)."""
+    entries = []
+    for (name, _, maneuver), aligned in zip(state.held_out, state.held_aligned):
+        _note(state, f"predicting the held-out trial {name}")
+        entries.append(held_out_entry(state, name, aligned, maneuver))
+    return replace(state, predictions=entries)
+
+
 STEPS = (align_recording, locate_nominal, update_rig, locate_updated, fit_mechanisms, refit_jointly,
-         test_against_noise, score_hypotheses, locate_after, judge_offsets, decide_verdict, test_second_mechanism)
+         test_against_noise, score_hypotheses, locate_after, judge_offsets, decide_verdict, test_second_mechanism,
+         predict_held_out)

@@ -10,6 +10,7 @@ from .._decay import free_decay
 from .._metrics import channel_metrics
 from ._hypotheses import REFINE_XATOL, profile_uncertainty
 from ._locate import low_pass, structure_threshold
+from ._trials import split_channel
 
 FREE_DECAY_KEYS = ("frequency_hz", "damping_ratio", "amplitude", "shape", "confidence", "decay_rate",
                    "decrement_per_cycle", "quadratic_coefficient")
@@ -29,8 +30,8 @@ def report_channels(rig, channels, key):
     """The rig's own choice (its file's ``[report] key``) among ``channels``, else every body channel of them."""
     chosen = rig.report.get(key)
     if chosen:
-        return [c for c in chosen if c in channels]
-    return [c for c in channels if c.partition(".")[0] in rig.bodies]
+        return [c for name in chosen for c in channels if split_channel(c)[1] == name]
+    return [c for c in channels if split_channel(c)[1].partition(".")[0] in rig.bodies]
 
 
 def free_decay_section(time, channels, measured, nominal, fitted, fitted_name, t_stop, updated=None,

@@ -52,12 +52,12 @@ from ...simulate import (
     DISCRETIZATION_LEVELS,
     SimulationError,
     StaticsError,
-    apply_parameters,
     simulate,
 )
 from .._compare import channel_kind
 from ._hypotheses import _grid_job, _init, _pool, channels_on
 from ._scale import REFERENCE
+from ._trials import apply_to_trials, joined_states, stack_trials, trial_contexts
 
 __all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "update_model", "joint_refit", "model_error", "finer_discretization",
            "nuisance_correlation", "mark_model_error"]
@@ -116,18 +116,21 @@ def _rig_job(coords, discretization=None, dt_factor=None, guess=None):
     """Channels of the rig with its parameters at ``coords`` (None when the simulation fails)."""
     from ._hypotheses import _CTX as ctx
 
-    rig, maneuver = apply_parameters(ctx["rig"], ctx["maneuver"], ctx["parameters"], coords)
+    rig, maneuvers = apply_to_trials(ctx, ctx["parameters"], coords)
     dt = None
     if dt_factor is not None:
         dt = ctx["nominal_dt"] * dt_factor
-    try:
-        res = simulate(rig, maneuver, discretization or ctx["discretization"], list(ctx.get("base_physics", ())),
-                       duration=ctx["duration"], rate_hz=ctx["rate_hz"], dt=dt,
-                       statics_guess=(ctx["initial_state"] if guess is None else guess)
-                       if discretization is None else None)
-    except (SimulationError, StaticsError, FloatingPointError):
-        return None, None
-    return channels_on(res, ctx), res.states[0]
+    sims, states = [], []
+    for trial in trial_contexts(dict(ctx, maneuver=maneuvers), guess):
+        try:
+            res = simulate(rig, trial["maneuver"], discretization or ctx["discretization"],
+                           list(ctx.get("base_physics", ())), duration=trial["duration"], rate_hz=ctx["rate_hz"],
+                           dt=dt, statics_guess=trial["initial_state"] if discretization is None else None)
+        except (SimulationError, StaticsError, FloatingPointError):
+            return None, None
+        sims.append(channels_on(res, trial))
+        states.append(res.states[0])
+    return stack_trials(ctx, sims), joined_states(ctx, states)
 
 
 def finer_discretization(rig, discretization):
@@ -344,7 +347,7 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
     cov[idx] = H_inv[: len(active), : len(active)] * dispersion
     information = np.ones(k)  # posterior / prior sd from the data alone (noise-level residual)
     information[active] = np.sqrt(np.clip(np.diag(H_inv)[: len(active)], 0.0, None)) / tol[active]
-    rig, maneuver = apply_parameters(ctx["rig"], ctx["maneuver"], params, coords)
+    rig, maneuver = apply_to_trials(ctx, params, coords)
     offsets = nuis[len(errs):len(errs) + c]
     block = _calibration_block(params, coords, cov, information, strength, offsets, ctx, history,
                                failed_names)
@@ -423,7 +426,7 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     finally:
         pool.close()
     coords, state = fit.coords, fit.state
-    rig, maneuver = apply_parameters(ctx["rig"], ctx["maneuver"], params, coords)
+    rig, maneuver = apply_to_trials(ctx, params, coords)
     main = _main_of(mechanism)
     value0 = float(mechanism.parameters[main])
     sim_ctx = dict(ctx, rig=rig, maneuver=maneuver, initial_state=state, base_physics=())

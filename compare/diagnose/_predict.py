@@ -1,0 +1,82 @@
+"""Trials the fit never saw, predicted by the nominal, the updated and the named model.
+
+A diagnosis fitted on some trials of a machine predicts the others
+(``predict_held_out``): each held-out trial is aligned as any recording is,
+then simulated with the nominal rig, with the rig as the fit updated it, and
+with that rig and the named mechanism (the joint refit's, where there was
+one). Only each channel's constant offset is fitted on the held-out trial
+(its own calibration origin): everything else is prediction. The residual is
+reported in noise units (1 = the trial's own noise) and per channel in SI.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...simulate import SimulationError, StaticsError, apply_parameters, make_mechanism, simulate
+from ._hypotheses import channels_on
+
+__all__ = ["held_out_entry"]
+
+
+def _models(state):
+    """``(label, rig, coords or None, physics)`` of each model that predicts: nominal, updated, named."""
+    models = [("nominal", state.rig, None, [])]
+    update = state.update
+    if update is not None:
+        models.append(("updated", update["rig"], update["coords"], []))
+    verdict = state.verdict
+    if verdict in state.scored:
+        if verdict in state.joints:
+            joint = state.joints[verdict]
+            models.append(("named", joint["rig"], joint["coords"], [joint["mechanism"]]))
+        else:
+            main = next(h["main_parameter"] for h in state.hypotheses if h["name"] == verdict)
+            mechanism = make_mechanism(verdict, **{main: float(state.scored[verdict]["value"])})
+            rig, coords = (update["rig"], update["coords"]) if update is not None else (state.rig, None)
+            models.append(("named", rig, coords, [mechanism]))
+    return models
+
+
+def _residual_rms(measured, sim, noise):
+    """RMS residual in noise units over every measured sample, and per channel (SI), each channel's mean removed."""
+    r = measured - sim
+    r = r - np.nanmean(r, axis=0)
+    z = r / noise
+    return float(np.sqrt(np.nanmean(z * z))), [float(np.sqrt(np.nanmean(r[:, j] ** 2))) for j in range(r.shape[1])]
+
+
+def held_out_entry(state, name, aligned, maneuver):
+    """The held-out trial ``name`` (``aligned``: its recording on the model's clock) predicted by every model.
+
+    Returns
+    -------
+    dict
+        ``trial``, ``rows``, ``channels``, ``rms_noise`` (model -> RMS
+        residual in the trial's noise units, None where the simulation
+        failed), ``rms_channels`` (channel -> model -> RMS, SI), ``named``
+        (the mechanism, or None).
+    """
+    ctx = aligned["ctx"]
+    params = ctx["parameters"]
+    rms, per_channel = {}, {}
+    named = None
+    for label, rig, coords, physics in _models(state):
+        man = maneuver if coords is None else apply_parameters(state.rig, maneuver, params, coords)[1]
+        if label == "named":
+            named = physics[0].name
+        try:
+            run = simulate(rig, man, state.discretization, physics, duration=ctx["duration"], rate_hz=ctx["rate_hz"],
+                           statics_guess=aligned["nominal_run"].states[0])
+        except (SimulationError, StaticsError, FloatingPointError):
+            rms[label] = None
+            continue
+        rms[label], per_channel[label] = _residual_rms(aligned["values"], channels_on(run, ctx), aligned["noise"])
+    return {"trial": name, "rows": int(aligned["time"].size), "channels": list(aligned["channels"]),
+            "rms_noise": rms, "named": named,
+            "rms_channels": {ch: {label: values[j] for label, values in per_channel.items()}
+                             for j, ch in enumerate(aligned["channels"])},
+            "better_than_nominal": {label: (value is not None and rms.get("nominal") is not None
+                                            and value < rms["nominal"])
+                                    for label, value in rms.items() if label != "nominal"}}
+
