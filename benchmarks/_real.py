@@ -28,6 +28,8 @@ import numpy as np
 __all__ = ["bench_real", "summary_lines", "TRIAL_ROWS"]
 
 TRIAL_ROWS = 900
+# The known answer: the rig file's rope length put this much wrong on purpose (issue 36: 5 %).
+KNOWN_ANSWER_FACTOR = 1.05
 _HERE = Path(__file__).resolve().parent / "real"
 RIG = _HERE / "stormlord.toml"
 MAPPING = _HERE / "stormlord_mapping.toml"
@@ -87,7 +89,7 @@ def _read_flight(csv, meta, rows, folder, rig):
     return rate, table, maneuver
 
 
-def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2):
+def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2, known_answer=True):
     """Leave one flight out: the others fitted together, the one left out predicted, for every flight under ``data``.
 
     Returns
@@ -103,7 +105,8 @@ def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2):
         ``verdicts`` (verdict -> count) and ``verdict_agreement`` (the most
         common verdict's share); ``parameters`` (per parameter: min, median,
         max and standard deviation of the estimates over splits, and the
-        median stated uncertainty).
+        median stated uncertainty); ``known_answer`` (``_known_answer``:
+        the rope's length put 5 % wrong in the rig file, recovered or not).
     """
     from dragline.compare.diagnose import diagnose
     from dragline.simulate import load_rig
@@ -139,7 +142,51 @@ def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2):
         note(f"without {held}: {doc['verdict']}; held-out RMS (noise units) "
              + ", ".join(f"{k} {v:.3g}" for k, v in rms.items() if v is not None)
              + f" ({time.perf_counter() - started:.0f} s)")
-    return _summary(splits)
+    report = _summary(splits)
+    if known_answer:
+        report["known_answer"] = _known_answer(read, workers, note)
+    return report
+
+
+def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="ropes.rope.length"):
+    """Every flight fitted together twice: with the rig file's rope length, and with it put ``wrong`` times off.
+
+    The data do not change, so the updating should land on the same length
+    from either file: the wrong file's estimate within its stated interval
+    of the right file's (and of its own). What comes back: both estimates
+    and uncertainties, the distance between them in the wrong fit's
+    standard deviations, and each parameter's identifiability.
+    """
+    import tomllib
+
+    from dragline.compare.diagnose import diagnose
+    from dragline.simulate import rig_from_dict
+
+    doc = tomllib.loads(RIG.read_text())
+    doc.pop("maneuver", None)
+    right_length = float(doc["ropes"]["rope"]["length"])
+    wrong_doc = tomllib.loads(RIG.read_text())
+    wrong_doc.pop("maneuver", None)
+    wrong_doc["ropes"]["rope"]["length"] = right_length * wrong
+    names = list(read)
+    fits = {}
+    for label, rig_doc in (("right_file", doc), ("wrong_file", wrong_doc)):
+        started = time.perf_counter()
+        out = diagnose([read[n][1] for n in names], [read[n][2] for n in names], rig=rig_from_dict(rig_doc),
+                       workers=workers, trial_names=names).doc
+        entries = {e["parameter"]: e for e in out["calibration"]["parameters"]}
+        fits[label] = {"rope_length": float(rig_doc["ropes"]["rope"]["length"]),
+                       "estimate": entries[parameter]["estimate"], "uncertainty": entries[parameter]["uncertainty"],
+                       "verdict": out["verdict"],
+                       "identifiable": {k: e["identifiable"] for k, e in entries.items()},
+                       "seconds": time.perf_counter() - started}
+        note(f"known answer, {label.replace('_', ' ')} ({fits[label]['rope_length']:.3f} m): "
+             f"{parameter} {fits[label]['estimate']:.4f} +- {fits[label]['uncertainty']:.2g}")
+    right, off = fits["right_file"], fits["wrong_file"]
+    apart = abs(off["estimate"] - right["estimate"])
+    return {"parameter": parameter, "factor": wrong, "flights": names, **fits,
+            "difference": apart, "difference_in_sd": apart / off["uncertainty"] if off["uncertainty"] else None,
+            "recovered": bool(apart <= off["uncertainty"])}
 
 
 def _share(pairs):
@@ -182,6 +229,14 @@ def summary_lines(report):
     for name, s in report["parameters"].items():
         lines.append(f"{name}: {s['min']:.4g} .. {s['median']:.4g} .. {s['max']:.4g} (sd {s['sd']:.2g}, stated "
                      f"+-{s['median_uncertainty']:.2g}) over {s['n']} splits")
+    known = report.get("known_answer")
+    if known:
+        right, wrong = known["right_file"], known["wrong_file"]
+        lines.append(f"known answer: {known['parameter']} {right['estimate']:.4f} +- {right['uncertainty']:.2g} from "
+                     f"the file's {right['rope_length']:.3f} m, {wrong['estimate']:.4f} +- {wrong['uncertainty']:.2g} "
+                     f"from {wrong['rope_length']:.3f} m: "
+                     + ("recovered" if known["recovered"] else "not recovered")
+                     + f" ({known['difference_in_sd']:.1f} sd apart)")
     for key, what in (("updated_better_share", "the updated model predicts the held-out flight better than the "
                                                "nominal one"),
                       ("named_better_share", "the named model predicts it better than the updated one")):

@@ -164,6 +164,11 @@ def test_bench_real_leaves_each_flight_out_and_predicts_it(tmp_path):
             assert rms[model] > 0.0
     assert report["parameters"]["ropes.rope.length"]["n"] == 2
     assert report["updated_better_share"] in (0.0, 0.5, 1.0)
+    # The known answer: both flights fitted from the rig file's 3.0 m and from 3.15 m put in on purpose.
+    known = report["known_answer"]
+    assert known["right_file"]["rope_length"] == 3.0 and known["wrong_file"]["rope_length"] == pytest.approx(3.15)
+    assert known["flights"] == ["rosbag_15", "rosbag_19"]
+    assert known["recovered"] == (known["difference"] <= known["wrong_file"]["uncertainty"])
 
 
 def test_rows_that_cannot_be_timed_are_repeats_and_glitches_and_nothing_else():
