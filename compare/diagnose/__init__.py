@@ -16,6 +16,8 @@ the work is in one module per concern (docs/diagnosis.md states the method):
   trajectory table) and checked against the maneuver;
 - ``_summary``: the document's free decay, metrics and calibration sections;
 - ``_scale``: the floors, set on the dragline, at any machine's own scale;
+- ``_trials``: several trials of one machine stacked as one recording;
+- ``_predict``: trials the fit never saw, predicted;
 - ``_state`` and ``_steps``: the state object and the steps over it;
 - ``_diagnose``: the steps run in order, the document read off the state.
 """
