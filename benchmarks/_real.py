@@ -89,7 +89,7 @@ def _read_flight(csv, meta, rows, folder, rig):
     return rate, table, maneuver
 
 
-def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2, known_answer=True):
+def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2, known_answer=True, figure=None):
     """Leave one flight out: the others fitted together, the one left out predicted, for every flight under ``data``.
 
     Returns
@@ -107,6 +107,8 @@ def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2, known_answer=Tru
         max and standard deviation of the estimates over splits, and the
         median stated uncertainty); ``known_answer`` (``_known_answer``:
         the rope's length put 5 % wrong in the rig file, recovered or not).
+        ``figure``: a PNG path where the first flight left out is drawn
+        against each model's prediction.
     """
     from dragline.compare.diagnose import diagnose
     from dragline.simulate import load_rig
@@ -124,13 +126,16 @@ def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2, known_answer=Tru
         started = time.perf_counter()
         tables, maneuvers = [read[n][1] for n in fitted], [read[n][2] for n in fitted]
         try:
-            doc = diagnose(tables, maneuvers, rig=rig, workers=workers, trial_names=fitted,
-                           held_out=[(held, read[held][1], read[held][2])]).doc
+            result = diagnose(tables, maneuvers, rig=rig, workers=workers, trial_names=fitted,
+                              held_out=[(held, read[held][1], read[held][2])])
+            doc = result.doc
         except ValueError as exc:
             splits.append({"held_out": held, "fitted": fitted, "verdict": "error", "reason": str(exc)})
             note(f"without {held}: error: {exc}")
             continue
         (predicted,) = doc["held_out"]
+        if figure is not None and not splits:
+            _draw(figure, result)
         params = {e["parameter"]: {"estimate": e["estimate"], "uncertainty": e["uncertainty"],
                                    "shift_in_tolerances": e["shift_in_tolerances"], "identifiable": e["identifiable"]}
                   for e in doc["calibration"]["parameters"]}
@@ -187,6 +192,19 @@ def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="rop
     return {"parameter": parameter, "factor": wrong, "flights": names, **fits,
             "difference": apart, "difference_in_sd": apart / off["uncertainty"] if off["uncertainty"] else None,
             "recovered": bool(apart <= off["uncertainty"])}
+
+
+def _draw(path, result):
+    """The held-out flight of ``result`` against each model's prediction, as a PNG written atomically."""
+    from matplotlib.figure import Figure
+
+    from dragline.capture import atomic_file
+    from dragline.compare.diagnose import draw_held_out
+
+    fig = Figure(figsize=(8.0, 7.0))
+    draw_held_out(fig, result.held_out[0], result.doc["held_out"][0])
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=110)
 
 
 def _share(pairs):
@@ -251,6 +269,7 @@ def bench_command(args):
 
     if not getattr(args, "data", None):
         raise ValueError("bench real needs --data DIR: the flights' folder (docs/real-recordings.md)")
-    report = bench_real(args.data, progress=lambda line: print(line, file=sys.stderr))
+    report = bench_real(args.data, progress=lambda line: print(line, file=sys.stderr),
+                        figure=getattr(args, "figure", None))
     return report, summary_lines(report)
 

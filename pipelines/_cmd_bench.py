@@ -32,6 +32,8 @@ def add_parser(sub):
     add_scheduler_option(p)
     p.add_argument("--data", metavar="DIR",
                    help="real: the flights' folder (the Stormlord repository's data_combined_system)")
+    p.add_argument("--figure", metavar="FILE.png",
+                   help="real: the first flight left out, drawn against each model's prediction")
     p.add_argument("--keep-diagnoses", metavar="DIR",
                    help="discovery: keep every case's diagnosis.json in DIR (case<seed>.json)")
 

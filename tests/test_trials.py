@@ -71,8 +71,9 @@ def trials(tmp_path_factory):
     out = folder / "diagnosis.json"
     code = main(["diagnose", str(paths["a"]), str(paths["b"]), "--predict", str(paths["c"]), "--rig", str(rig_path),
                  "--discretization", "low", "--candidates", "aero_drag,rope_bending_damping", "--json", str(out),
-                 "--quiet"])
+                 "--report", str(folder / "report.pdf"), "--quiet"])
     assert code == 0
+    assert (folder / "report.pdf").stat().st_size > 0
     return json.loads(out.read_text()), folder, paths, rig_path
 
 

@@ -22,9 +22,17 @@ the work is in one module per concern (docs/diagnosis.md states the method):
 - ``_diagnose``: the steps run in order, the document read off the state.
 """
 
-from ._diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_diagnosis_json, write_diagnosis_report
+from ._diagnose import (
+    Diagnosis,
+    diagnose,
+    diagnose_path,
+    draw_held_out,
+    load_recording,
+    write_diagnosis_json,
+    write_diagnosis_report,
+)
 from ._hypotheses import candidate_list
 from ._scale import FREE_HZ, MachineScale, machine_scale
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
-           "write_diagnosis_report", "candidate_list", "MachineScale", "machine_scale", "FREE_HZ"]
+           "write_diagnosis_report", "candidate_list", "draw_held_out", "MachineScale", "machine_scale", "FREE_HZ"]

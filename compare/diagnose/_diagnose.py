@@ -35,7 +35,8 @@ from ._steps import STEPS
 from ._trials import SEPARATOR, split_channel
 from ._summary import before_after_metrics, calibration_doc, free_decay_section, report_channels
 
-__all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json", "write_diagnosis_report"]
+__all__ = ["Diagnosis", "diagnose", "diagnose_path", "draw_held_out", "load_recording", "write_diagnosis_json",
+           "write_diagnosis_report"]
 
 SCHEMA = "dragline.diagnosis/1"
 MAX_MISMATCH_ENTRIES = 30
@@ -68,6 +69,8 @@ class Diagnosis:
         The channels the report draws measured against the models.
     machine : MachinePicture or None
         The nominal rig at the nominal run's start, drawn on the report's first page.
+    held_out : list of HeldOut
+        The trials the fit never saw, with each model's prediction (``_predict``).
     """
 
     doc: dict
@@ -80,6 +83,7 @@ class Diagnosis:
     located: dict = field(default_factory=dict)
     overlay_channels: list = field(default_factory=list)
     machine: object = None
+    held_out: list = field(default_factory=list)
 
 
 
@@ -266,7 +270,8 @@ def diagnosis_of(state):
                      located={"before": json_ready(state.located), "after": json_ready(state.located_after)},
                      overlay_channels=report_channels(state.rig, channels, "overlay_channels"),
                      machine=picture_at(state.nominal_run.model, state.nominal_run.states[0],
-                                        float(state.nominal_run.time[0])))
+                                        float(state.nominal_run.time[0])),
+                     held_out=list(state.predicted_series))
 
 
 def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretization="baseline", candidates=None,
@@ -328,6 +333,14 @@ def trial_names_of(paths):
 def write_diagnosis_json(path, doc):
     """Write the diagnosis JSON atomically (strict JSON, no NaN)."""
     write_json(path, doc)
+
+
+def draw_held_out(fig, held, entry):
+    """Draw a held-out trial (``Diagnosis.held_out[k]``, its JSON entry ``doc["held_out"][k]``) against each model's
+    prediction on a matplotlib ``Figure``: the report's page, for a figure of one's own."""
+    from ._report import draw_held_out as draw
+
+    draw(fig, held, entry)
 
 
 def write_diagnosis_report(path, diagnosis):

@@ -11,12 +11,14 @@ reported in noise units (1 = the trial's own noise) and per channel in SI.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ...simulate import SimulationError, StaticsError, apply_parameters, make_mechanism, simulate
 from ._hypotheses import channels_on
 
-__all__ = ["held_out_entry"]
+__all__ = ["held_out_entry", "HeldOut"]
 
 
 def _models(state):
@@ -51,15 +53,17 @@ def held_out_entry(state, name, aligned, maneuver):
 
     Returns
     -------
-    dict
+    entry : dict
         ``trial``, ``rows``, ``channels``, ``rms_noise`` (model -> RMS
         residual in the trial's noise units, None where the simulation
         failed), ``rms_channels`` (channel -> model -> RMS, SI), ``named``
         (the mechanism, or None).
+    series : HeldOut
+        What the report draws.
     """
     ctx = aligned["ctx"]
     params = ctx["parameters"]
-    rms, per_channel = {}, {}
+    rms, per_channel, sims = {}, {}, {}
     named = None
     for label, rig, coords, physics in _models(state):
         man = maneuver if coords is None else apply_parameters(state.rig, maneuver, params, coords)[1]
@@ -71,12 +75,33 @@ def held_out_entry(state, name, aligned, maneuver):
         except (SimulationError, StaticsError, FloatingPointError):
             rms[label] = None
             continue
-        rms[label], per_channel[label] = _residual_rms(aligned["values"], channels_on(run, ctx), aligned["noise"])
+        sims[label] = channels_on(run, ctx)
+        rms[label], per_channel[label] = _residual_rms(aligned["values"], sims[label], aligned["noise"])
+    series = HeldOut(name=name, time=aligned["time"], channels=list(aligned["channels"]),
+                     measured=aligned["values"], predicted=sims, named=named)
     return {"trial": name, "rows": int(aligned["time"].size), "channels": list(aligned["channels"]),
             "rms_noise": rms, "named": named,
             "rms_channels": {ch: {label: values[j] for label, values in per_channel.items()}
                              for j, ch in enumerate(aligned["channels"])},
             "better_than_nominal": {label: (value is not None and rms.get("nominal") is not None
                                             and value < rms["nominal"])
-                                    for label, value in rms.items() if label != "nominal"}}
+                                    for label, value in rms.items() if label != "nominal"}}, series
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """A held-out trial and its predictions, as the report draws them.
+
+    ``time`` (n,) s on the model's clock; ``measured`` (n, c) SI, NaN where
+    not measured; ``predicted``: model label (``nominal``, ``updated``,
+    ``named``) -> (n, c), each as simulated (offsets not removed); ``named``:
+    the mechanism's name, or None.
+    """
+
+    name: str
+    time: np.ndarray
+    channels: list
+    measured: np.ndarray
+    predicted: dict
+    named: str | None
 

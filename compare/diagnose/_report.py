@@ -269,6 +269,39 @@ def _overlay_pages(pdf, diag):
         pdf.savefig(fig)
 
 
+HELD_OUT_STYLE = {"nominal": ("tab:red", "--"), "updated": ("tab:green", "-."), "named": ("tab:blue", "-")}
+
+
+def draw_held_out(fig, held, entry, most=3):
+    """A held-out trial measured against each model's prediction, each channel's mean removed (as the RMS is)."""
+    rms = entry["rms_noise"]
+    fig.suptitle(f"Held-out trial {held.name}, never fitted: predicted by each model (each channel's mean removed)",
+                 fontsize=10)
+    chans = held.channels[:most]
+    axes = fig.subplots(len(chans), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, ch in zip(axes, chans):
+        j = held.channels.index(ch)
+        scale, unit = PLOT[channel_kind(ch)]
+        measured = held.measured[:, j]
+        ax.plot(held.time, scale * (measured - np.nanmean(measured)), color="0.55", lw=0.6, label="measured")
+        for label, sim in held.predicted.items():
+            color, ls = HELD_OUT_STYLE[label]
+            name = held.named if label == "named" else label
+            ok = np.isfinite(measured)
+            ax.plot(held.time, scale * (sim[:, j] - np.mean(sim[ok, j])), color=color, ls=ls, lw=1.0,
+                    label=f"{name} ({rms[label]:.3g} x noise)" if rms.get(label) is not None else name)
+        ax.set_ylabel(f"{ch} ({unit})")
+        ax.legend(loc="upper right", fontsize=6, ncol=2)
+    axes[-1].set_xlabel("time (s, simulation clock); legend: RMS residual over the trial in its noise units")
+
+
+def _held_out_pages(pdf, diag):
+    for held, entry in zip(diag.held_out, diag.doc.get("held_out", [])):
+        fig = Figure(figsize=PAGE_SIZE)
+        draw_held_out(fig, held, entry)
+        pdf.savefig(fig)
+
+
 def _profile_page(pdf, doc):
     hyps = [h for h in doc["hypotheses"] if h["profile"]]
     if not hyps:
@@ -335,13 +368,14 @@ def write_report_pdf(path, diag):
     channel before and after, the candidates against their threshold),
     summary (verdict, hypotheses with uncertainty, mismatch, free
     decay), before/after overlays of the key channels with low-passed
-    residuals, each candidate's fit profile, the mismatch map before and
-    after.
+    residuals, each held-out trial against each model's prediction, each
+    candidate's fit profile, the mismatch map before and after.
     """
     with report_pdf(path, "dragline diagnosis") as pdf:
         _glance_page(pdf, diag)
         text_pages(pdf, "Diagnosis: what physics does the model leave out?", _summary_lines(diag.doc),
                     size=TEXT_SIZE)
         _overlay_pages(pdf, diag)
+        _held_out_pages(pdf, diag)
         _profile_page(pdf, diag.doc)
         _map_page(pdf, diag)

@@ -151,3 +151,4 @@ class DiagnosisState:
     second: dict | None = None
     # predict_held_out
     predictions: list = field(default_factory=list)
+    predicted_series: list = field(default_factory=list)

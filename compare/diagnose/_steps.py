@@ -627,11 +627,13 @@ def test_second_mechanism(state):
 
 def predict_held_out(state):
     """The trials the fit never saw, predicted by the nominal, the updated and the named model (``_predict``)."""
-    entries = []
+    entries, series = [], []
     for (name, _, maneuver), aligned in zip(state.held_out, state.held_aligned):
         _note(state, f"predicting the held-out trial {name}")
-        entries.append(held_out_entry(state, name, aligned, maneuver))
-    return replace(state, predictions=entries)
+        entry, drawn = held_out_entry(state, name, aligned, maneuver)
+        entries.append(entry)
+        series.append(drawn)
+    return replace(state, predictions=entries, predicted_series=series)
 
 
 STEPS = (align_recording, locate_nominal, update_rig, locate_updated, fit_mechanisms, refit_jointly,
