@@ -178,7 +178,7 @@ def _aligned_trial(state, measured, maneuver, rate=None):
     step = float(np.median(np.diff(t_meas)))
     if np.max(np.abs(np.diff(t_meas) - step)) > 0.01 * step:
         raise ValueError("the measured table's time is not uniformly sampled")
-    if rate is not None and abs(step * rate - 1.0) > 1e-9:
+    if rate is not None and abs(step * rate - 1.0) > 1e-6:  # within 1 ppm: the same rate, rounded
         measured = _resampled(measured, rate)
         t_meas = np.asarray(measured["time"], float)
     else:
