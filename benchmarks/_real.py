@@ -23,8 +23,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 __all__ = ["bench_real", "summary_lines", "TRIAL_ROWS"]
 
 TRIAL_ROWS = 900
@@ -95,22 +93,15 @@ def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2, known_answer=Tru
     Returns
     -------
     dict
-        ``splits`` (per held-out flight: the flights fitted, the verdict, the
-        reason, the shared parameters with their uncertainty, the held-out
-        flight's RMS residual in its noise units for the nominal, updated
-        and named model, seconds); ``updated_better_share`` and
-        ``named_better_share`` (splits where the updated model predicts the
-        held-out flight better than the nominal one, and the named model
-        better than the updated one, among splits that name one);
-        ``verdicts`` (verdict -> count) and ``verdict_agreement`` (the most
-        common verdict's share); ``parameters`` (per parameter: min, median,
-        max and standard deviation of the estimates over splits, and the
-        median stated uncertainty); ``known_answer`` (``_known_answer``:
+        ``compare.diagnose.leave_one_out``'s summary over the flights
+        (``splits``, ``verdicts``, ``verdict_agreement``, ``parameters``,
+        ``updated_better_share``, ``named_better_share``), each flight's
+        ``rates_hz``, and ``known_answer`` (``_known_answer``:
         the rope's length put 5 % wrong in the rig file, recovered or not).
         ``figure``: a PNG path where the first flight left out is drawn
         against each model's prediction.
     """
-    from dragline.compare.diagnose import diagnose
+    from dragline.compare.diagnose import leave_one_out
     from dragline.simulate import load_rig
 
     note = progress or (lambda line: None)
@@ -120,34 +111,17 @@ def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2, known_answer=Tru
         raise ValueError(f"{data}: leaving one flight out needs at least two flights, found {len(flights)}")
     with tempfile.TemporaryDirectory(prefix="dragline-real-") as tmp:
         read = {name: _read_flight(csv, meta, rows, tmp, rig) for name, csv, meta in flights}
-    splits = []
-    for held in read:
-        fitted = [name for name in read if name != held]
-        started = time.perf_counter()
-        tables, maneuvers = [read[n][1] for n in fitted], [read[n][2] for n in fitted]
-        try:
-            result = diagnose(tables, maneuvers, rig=rig, workers=workers, trial_names=fitted,
-                              held_out=[(held, read[held][1], read[held][2])])
-            doc = result.doc
-        except ValueError as exc:
-            splits.append({"held_out": held, "fitted": fitted, "verdict": "error", "reason": str(exc)})
-            note(f"without {held}: error: {exc}")
-            continue
-        (predicted,) = doc["held_out"]
-        if figure is not None and not splits:
+    drawn = []
+
+    def first_figure(result):
+        if figure is not None and not drawn:
             _draw(figure, result)
-        params = {e["parameter"]: {"estimate": e["estimate"], "uncertainty": e["uncertainty"],
-                                   "shift_in_tolerances": e["shift_in_tolerances"], "identifiable": e["identifiable"]}
-                  for e in doc["calibration"]["parameters"]}
-        splits.append({"held_out": held, "fitted": fitted, "rates_hz": {n: read[n][0] for n in fitted},
-                       "verdict": doc["verdict"], "reason": doc["reason"], "parameters": params,
-                       "held_out_rms_noise": predicted["rms_noise"], "held_out_rms_channels": predicted["rms_channels"],
-                       "seconds": time.perf_counter() - started})
-        rms = predicted["rms_noise"]
-        note(f"without {held}: {doc['verdict']}; held-out RMS (noise units) "
-             + ", ".join(f"{k} {v:.3g}" for k, v in rms.items() if v is not None)
-             + f" ({time.perf_counter() - started:.0f} s)")
-    report = _summary(splits)
+            drawn.append(figure)
+
+    names = list(read)
+    report = leave_one_out([read[n][1] for n in names], [read[n][2] for n in names], names, progress=note,
+                           on_split=first_figure, rig=rig, workers=workers)
+    report["rates_hz"] = {n: read[n][0] for n in names}
     if known_answer:
         report["known_answer"] = _known_answer(read, workers, note)
     return report
@@ -205,34 +179,6 @@ def _draw(path, result):
     draw_held_out(fig, result.held_out[0], result.doc["held_out"][0])
     with atomic_file(path) as tmp:
         fig.savefig(tmp, format="png", dpi=110)
-
-
-def _share(pairs):
-    pairs = [(a, b) for a, b in pairs if a is not None and b is not None]
-    return float(np.mean([a < b for a, b in pairs])) if pairs else None
-
-
-def _summary(splits):
-    done = [s for s in splits if s["verdict"] != "error"]
-    verdicts = {}
-    for s in splits:
-        verdicts[s["verdict"]] = verdicts.get(s["verdict"], 0) + 1
-    spread = {}
-    for s in done:
-        for name, e in s["parameters"].items():
-            spread.setdefault(name, []).append((e["estimate"], e["uncertainty"]))
-    parameters = {k: {"min": float(min(e for e, _ in v)), "median": float(np.median([e for e, _ in v])),
-                      "max": float(max(e for e, _ in v)), "sd": float(np.std([e for e, _ in v])),
-                      "median_uncertainty": float(np.median([u for _, u in v])), "n": len(v)}
-                  for k, v in spread.items()}
-    rms = [s["held_out_rms_noise"] for s in done]
-    return {"splits": splits, "verdicts": verdicts,
-            "verdict_agreement": max(verdicts.values()) / len(splits) if splits else None,
-            "parameters": parameters,
-            "updated_better_share": _share([(r.get("updated"), r.get("nominal")) for r in rms]),
-            "named_better_share": _share([(r.get("named"), r.get("updated")) for r in rms if "named" in r]),
-            "note": "each split fits every flight but one together (shared rig and mechanism parameters, each "
-                    "flight its own offsets) and predicts the one left out"}
 
 
 def summary_lines(report):

@@ -33,6 +33,9 @@ def add_parser(sub):
                    help="a session, a VICON-style marker CSV or a measured trajectory table; several: trials of "
                         "the machine fitted together (shared rig and mechanism parameters, each trial its own "
                         "offsets and clock)")
+    p.add_argument("--leave-one-out", action="store_true",
+                   help="with several recordings: each in turn left out, the others fitted together and it "
+                        "predicted (verdict agreement, the parameters' spread, held-out improvement)")
     p.add_argument("--predict", action="append", default=[], metavar="RECORDING",
                    help="a trial of the same machine the fit never sees, predicted by the nominal, the updated and "
                         "the named model (repeatable; read as INPUT is)")
@@ -70,6 +73,8 @@ def run(args):
                    args.calibration, args.rig, args.mapping], files=outputs)
     if args.workers < 1:
         raise ValueError("--workers must be at least 1")
+    if args.leave_one_out and len(args.input) < 2:
+        raise ValueError("--leave-one-out needs at least two recordings")
     names = None
     if args.candidates:
         names = [n.strip() for n in args.candidates.split(",") if n.strip()]
@@ -84,7 +89,7 @@ def run(args):
     result = diagnose_path(args.input if len(args.input) > 1 else args.input[0], maneuver=args.maneuver, rig=rig,
                            calibration=args.calibration, discretization=discretization, candidates=names,
                            workers=executor_from_args(args), seed=args.seed, progress=say, between=between,
-                           mapping=args.mapping, held_out=args.predict)
+                           mapping=args.mapping, held_out=args.predict, leave_one_out=args.leave_one_out)
     write_diagnosis_json(args.json, result.doc)
     if args.report:
         write_diagnosis_report(args.report, result)
@@ -100,6 +105,12 @@ def run(args):
         for entry in doc["held_out"]:
             rms = ", ".join(f"{k} {v:.3g}" if v is not None else f"{k} failed" for k, v in entry["rms_noise"].items())
             print(f"held-out {entry['trial']}: RMS residual in noise units: {rms}", file=sys.stderr)
+        loo = doc.get("leave_one_out")
+        if loo:
+            better = loo["updated_better_share"]
+            print(f"leave one out: verdicts {loo['verdicts']}; the update predicts the trial left out better than "
+                  f"the nominal model in {'-' if better is None else f'{100 * better:.0f} %'} of "
+                  f"{len(loo['splits'])} splits", file=sys.stderr)
         print(f"{doc['timing']['simulations']} simulations in {time.perf_counter() - t0:.0f} s; wrote "
               + " and ".join(outputs), file=sys.stderr)
     return 0

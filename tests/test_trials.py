@@ -71,7 +71,7 @@ def trials(tmp_path_factory):
     out = folder / "diagnosis.json"
     code = main(["diagnose", str(paths["a"]), str(paths["b"]), "--predict", str(paths["c"]), "--rig", str(rig_path),
                  "--discretization", "low", "--candidates", "aero_drag,rope_bending_damping", "--json", str(out),
-                 "--report", str(folder / "report.pdf"), "--quiet"])
+                 "--report", str(folder / "report.pdf"), "--leave-one-out", "--quiet"])
     assert code == 0
     assert (folder / "report.pdf").stat().st_size > 0
     return json.loads(out.read_text()), folder, paths, rig_path
@@ -102,6 +102,16 @@ def test_a_trial_never_fitted_is_predicted_within_noise_by_the_update_only(trial
     assert rms["nominal"] > 5.0
     assert rms["updated"] < 1.3
     assert entry["better_than_nominal"] == {"updated": True}
+
+
+def test_leaving_each_trial_out_the_others_predict_it_and_agree(trials):
+    loo = trials[0]["leave_one_out"]
+    assert [(s["held_out"], s["fitted"]) for s in loo["splits"]] == [("a-measured", ["b-measured"]),
+                                                                     ("b-measured", ["a-measured"])]
+    assert loo["verdicts"] == {"none": 2} and loo["verdict_agreement"] == 1.0
+    assert loo["updated_better_share"] == 1.0 and loo["named_better_share"] is None
+    length = loo["parameters"]["ropes.line.length"]
+    assert length["n"] == 2 and abs(length["min"] - TRUE_LENGTH) < 0.0025 and abs(length["max"] - TRUE_LENGTH) < 0.0025
 
 
 def test_a_held_out_trial_the_rig_cannot_read_is_refused_before_any_fit(trials, tmp_path, capsys):

@@ -28,6 +28,7 @@ from .._executor import as_executor
 from .._machine_figure import picture_at
 from ._band import RESOLVED_HZ, RESOLVED_MIN
 from ._hypotheses import BLOCK_S, DECAY_WEIGHT, MIN_IMPROVEMENT, NULL_QUANTILE, NULL_SURROGATES
+from ._leave_one_out import leave_one_out as _leave_one_out
 from ._locate import LOWPASS_S, structure_threshold
 from ._recording import load_recording
 from ._state import DiagnosisState
@@ -88,7 +89,7 @@ class Diagnosis:
 
 
 def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candidates=None, workers=2,
-             seed=0, source=None, progress=None, trial_names=None, held_out=()):
+             seed=0, source=None, progress=None, trial_names=None, held_out=(), leave_one_out=False):
     """Diagnose a measured trajectory table against the nominal model.
 
     Parameters
@@ -106,6 +107,10 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     held_out : sequence of (str, DataFrame, Maneuver)
         Trials the fit never sees, predicted at the end by the nominal, the
         updated and the named model (the document's ``held_out``).
+    leave_one_out : bool
+        With several trials: each in turn left out, the others diagnosed
+        together and it predicted (``_leave_one_out``; the document's
+        ``leave_one_out``), after the diagnosis of them all.
     rig : Rig, optional
     discretization : str or dict
         Of every simulation (``baseline`` by default).
@@ -156,12 +161,20 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     measured, maneuver, trial_names = _trials_of(measured, maneuver, rig, trial_names)
     held_out = tuple((str(name), table, default_maneuver(rig) if man is None else man)
                      for name, table, man in held_out)
+    if leave_one_out and trial_names is None:
+        raise ValueError("leaving one trial out needs several trials")
     state = DiagnosisState(measured=measured, rig=rig, maneuver=maneuver, discretization=discretization,
                            candidate_names=candidates, workers=workers, seed=seed, source=source, note=progress,
                            started=_time.perf_counter(), trial_names=trial_names, held_out=held_out)
     for step in STEPS:
         state = step(state)
-    return diagnosis_of(state)
+    result = diagnosis_of(state)
+    if leave_one_out:
+        split = _leave_one_out(measured, maneuver, list(trial_names), progress=progress, rig=rig,
+                               discretization=discretization, candidates=candidates, workers=workers, seed=seed)
+        result.doc["leave_one_out"] = json_ready(split)
+        result.doc["timing"]["seconds"] = _time.perf_counter() - state.started
+    return result
 
 
 def _trials_of(measured, maneuver, rig, names):
@@ -275,11 +288,12 @@ def diagnosis_of(state):
 
 
 def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretization="baseline", candidates=None,
-                  workers=2, seed=0, progress=None, between=None, mapping=None, held_out=()):
+                  workers=2, seed=0, progress=None, between=None, mapping=None, held_out=(), leave_one_out=False):
     """:func:`load_recording` then :func:`diagnose`: what ``dragline diagnose`` runs.
 
     ``path`` may be a list: several trials of the machine, fitted together;
-    ``held_out`` lists recordings the fit never sees, predicted at the end.
+    ``held_out`` lists recordings the fit never sees, predicted at the end;
+    ``leave_one_out`` leaves each of several in turn out (``diagnose``).
     Each is read as ``path`` is (same maneuver option, calibration, cut and
     mapping); a trial's name is its file's stem.
     """
@@ -301,7 +315,8 @@ def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretizatio
     spare = [(name, t, m) for name, (t, m, _) in zip(names[len(paths):], predicted)]
     try:
         result = diagnose(*args, rig, discretization, candidates, workers, seed, source, progress,
-                          trial_names=names[:len(paths)] if len(paths) > 1 else None, held_out=spare)
+                          trial_names=names[:len(paths)] if len(paths) > 1 else None, held_out=spare,
+                          leave_one_out=leave_one_out)
     except (StaticsError, SimulationError):
         raise  # about the rig or the maneuver, not the recording
     except ValueError as exc:

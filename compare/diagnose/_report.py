@@ -53,6 +53,17 @@ def _summary_lines(doc):
         for e in doc["held_out"]:
             cells = "  ".join(f"{k} {v:.3f}" if v is not None else f"{k} failed" for k, v in e["rms_noise"].items())
             lines.append(f"  {e['trial']:<20}{cells}")
+    loo = doc.get("leave_one_out")
+    if loo:
+        lines += ["", f"Leave one trial out ({len(loo['splits'])} splits): verdicts "
+                      + ", ".join(f"{k} {v}" for k, v in loo["verdicts"].items())]
+        for key, what in (("updated_better_share", "updated better than nominal on the trial left out"),
+                          ("named_better_share", "named better than updated")):
+            if loo[key] is not None:
+                lines.append(f"  {what}: {100 * loo[key]:.0f} % of splits")
+        for name, p in loo["parameters"].items():
+            lines.append(f"  {name}: {p['min']:.4g} .. {p['max']:.4g} (sd {p['sd']:.2g}; stated "
+                         f"+-{p['median_uncertainty']:.2g})")
     nt = doc["null_test"]
     lines += ["", f"Null test: held-out improvement threshold {nt['threshold']:.1f} (chi2 units): "
                   f"{100 * nt['quantile']:.0f}th percentile of {nt['n_surrogates']} noise surrogates "

@@ -24,7 +24,6 @@ same way).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from ...simulate import assemble, default_maneuver, linear_modes, solve_statics
