@@ -5,7 +5,8 @@ The truth is the slung load with its line 60 mm longer than the rig file says
 trials are flown with it, the diagnosis reads the file's 3.0 m. Each trial's
 recording has its own constant offset on the load's height (a calibration
 origin of its own), which a fit that shared offsets between trials could not
-take up.
+take up. And the dragline's dig with air drag, two trials on their own clocks,
+the drag named and a third trial predicted by the named model.
 """
 
 from __future__ import annotations
@@ -124,3 +125,32 @@ def test_a_held_out_trial_the_rig_cannot_read_is_refused_before_any_fit(trials, 
     assert code == 2
     assert len(err) == 1 and str(bad) in err[0]
     assert not (tmp_path / "d.json").exists()
+
+
+def test_dig_trials_on_their_own_clocks_name_the_hidden_drag_and_it_predicts_a_third():
+    """The dragline's dig with air drag on the bucket (cd 8), recorded three times with their own noise, the
+    second on a clock 0.3 s late: each trial aligned by its own rope lengths, the drag named from two, the
+    third predicted by the named model within twice its noise where the nominal and the updated one miss."""
+    from dragline.compare.diagnose import diagnose
+    from dragline.simulate import parse_physics
+
+    noise = {"position": 0.0005, "angle": 0.005}  # m, rad
+    run = simulate(physics=[parse_physics("aero_drag:cd=8.0")], discretization="low")
+
+    def recorded(seed, late=0.0):
+        rng = np.random.default_rng(seed)
+        table = run.table[[c for c in run.table.columns if "reel_length" not in c and "tension" not in c]].copy()
+        for c in table.columns[1:]:
+            kind = "angle" if c.rsplit(".", 1)[1] in ("roll", "pitch", "yaw", "p", "q", "r") else "position"
+            table[c] = table[c] + rng.normal(0.0, noise[kind], len(table))
+        table["time"] = table["time"] + late
+        return table
+
+    doc = diagnose([recorded(21), recorded(22, late=0.3)], candidates=["aero_drag", "pulley_inertia"],
+                   discretization="low", trial_names=["a", "b"], held_out=[("c", recorded(23), None)]).doc
+    assert doc["verdict"] == "aero_drag", doc["reason"]
+    assert [t["time_offset"] for t in doc["trials"]] == [pytest.approx(0.0, abs=0.002), pytest.approx(0.3, abs=0.002)]
+    named = next(h for h in doc["hypotheses"] if h["name"] == "aero_drag")
+    assert named["parameters"]["cd"] == pytest.approx(8.0, rel=0.15)
+    rms = doc["held_out"][0]["rms_noise"]
+    assert rms["named"] < 2.0 < rms["updated"] < rms["nominal"]
