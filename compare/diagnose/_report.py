@@ -294,11 +294,11 @@ def draw_held_out(fig, held, entry, most=3):
         j = held.channels.index(ch)
         scale, unit = PLOT[channel_kind(ch)]
         measured = held.measured[:, j]
+        ok = np.isfinite(measured)
         ax.plot(held.time, scale * (measured - np.nanmean(measured)), color="0.55", lw=0.6, label="measured")
         for label, sim in held.predicted.items():
             color, ls = HELD_OUT_STYLE[label]
             name = held.named if label == "named" else label
-            ok = np.isfinite(measured)
             ax.plot(held.time, scale * (sim[:, j] - np.mean(sim[ok, j])), color=color, ls=ls, lw=1.0,
                     label=f"{name} ({rms[label]:.3g} x noise)" if rms.get(label) is not None else name)
         ax.set_ylabel(f"{ch} ({unit})")
