@@ -136,6 +136,7 @@ def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="rop
     and uncertainties, the distance between them in the wrong fit's
     standard deviations, and each parameter's identifiability.
     """
+    import copy
     import tomllib
 
     from dragline.compare.diagnose import diagnose
@@ -143,10 +144,8 @@ def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="rop
 
     doc = tomllib.loads(RIG.read_text())
     doc.pop("maneuver", None)
-    right_length = float(doc["ropes"]["rope"]["length"])
-    wrong_doc = tomllib.loads(RIG.read_text())
-    wrong_doc.pop("maneuver", None)
-    wrong_doc["ropes"]["rope"]["length"] = right_length * wrong
+    wrong_doc = copy.deepcopy(doc)
+    wrong_doc["ropes"]["rope"]["length"] = float(doc["ropes"]["rope"]["length"]) * wrong
     names = list(read)
     fits = {}
     for label, rig_doc in (("right_file", doc), ("wrong_file", wrong_doc)):

@@ -37,4 +37,5 @@ from ._leave_one_out import leave_one_out
 from ._scale import FREE_HZ, MachineScale, machine_scale
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
-           "write_diagnosis_report", "candidate_list", "draw_held_out", "leave_one_out", "MachineScale", "machine_scale", "FREE_HZ"]
+           "write_diagnosis_report", "candidate_list", "draw_held_out", "leave_one_out", "MachineScale",
+           "machine_scale", "FREE_HZ"]

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import time as _time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -335,8 +336,6 @@ def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretizatio
 
 def trial_names_of(paths):
     """A distinct name per recording: its file's stem, with its folder's name where stems repeat."""
-    from pathlib import Path
-
     stems = [Path(p).stem for p in paths]
     if len(set(stems)) < len(stems):
         stems = [f"{Path(p).resolve().parent.name}-{Path(p).stem}" for p in paths]

@@ -66,7 +66,7 @@ def leave_one_out(measured, maneuvers, names, progress=None, on_split=None, **se
                        "parameters": {e["parameter"]: {"estimate": e["estimate"], "uncertainty": e["uncertainty"],
                                                        "shift_in_tolerances": e["shift_in_tolerances"],
                                                        "identifiable": e["identifiable"]}
-                                      for e in (doc["calibration"] or {}).get("parameters", [])},
+                                      for e in doc["calibration"]["parameters"]},
                        "held_out_rms_noise": predicted["rms_noise"],
                        "held_out_rms_channels": predicted["rms_channels"],
                        "seconds": time.perf_counter() - started})

@@ -112,7 +112,7 @@ def align_recording(state):
                               rate_hz=one["rate"], t_stop=one["t_stop"], stop_method=one["stop_method"],
                               offset=one["offset"], alignment=one["alignment"], windows=one["windows"],
                               lowpass_width=one["lowpass_width"], scale=one["scale"])
-        ctx = dict(one["ctx"], initial_state=one["nominal_run"].states[0])
+        ctx = one["ctx"]
         problem = Problem(one["time"], one["values"], one["noise"], one["t_stop"])
         return replace(state, recording=recording, nominal_run=one["nominal_run"], nominal_sim=one["nominal_sim"],
                        plain_problem=problem, nominal_ctx=ctx, problem=problem, ctx=ctx)
@@ -221,8 +221,8 @@ def _aligned_trial(state, measured, maneuver, rate=None):
     duration = float(time[-1] - t0) + 1.0 / rate
     dt = float(time[1] - time[0])
     ctx = {"rig": rig, "maneuver": maneuver, "discretization": state.discretization, "duration": duration,
-           "rate_hz": rate, "time": time, "channels": channels, "nominal_dt": float(nominal_run.dt),
-           "parameters": tuple(rig.tolerances),
+           "rate_hz": rate, "initial_state": nominal_run.states[0], "time": time, "channels": channels,
+           "nominal_dt": float(nominal_run.dt), "parameters": tuple(rig.tolerances),
            # The recording was reconstructed with this rig's geometry (``channels_on``).
            "reported_rig": rig, "scale": scale}
     return {"time": time, "channels": channels, "values": values, "noise": sigma, "rate": rate, "t_stop": t_stop,

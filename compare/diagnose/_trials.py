@@ -69,12 +69,11 @@ def joined_states(ctx, states):
     return tuple(states) if "trials" in ctx else states[0]
 
 
-def apply_to_trials(ctx, parameters, coords, rig=None):
+def apply_to_trials(ctx, parameters, coords):
     """``apply_parameters`` on the rig and every trial's maneuver: ``(rig, maneuver or tuple of maneuvers)``."""
-    rig = ctx["rig"] if rig is None else rig
     if "trials" not in ctx:
-        return apply_parameters(rig, ctx["maneuver"], parameters, coords)
-    out = [apply_parameters(rig, m, parameters, coords) for m in ctx["maneuver"]]
+        return apply_parameters(ctx["rig"], ctx["maneuver"], parameters, coords)
+    out = [apply_parameters(ctx["rig"], m, parameters, coords) for m in ctx["maneuver"]]
     return out[0][0], tuple(m for _, m in out)
 
 

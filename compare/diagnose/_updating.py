@@ -62,8 +62,8 @@ from ._hypotheses import _grid_job, _init, _pool, channels_on
 from ._scale import REFERENCE
 from ._trials import apply_to_trials, joined_states, stack_trials, trial_contexts
 
-__all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "update_model", "robust_covariance", "joint_refit", "model_error", "finer_discretization",
-           "nuisance_correlation", "mark_model_error"]
+__all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "update_model", "robust_covariance", "joint_refit", "model_error",
+           "finer_discretization", "nuisance_correlation", "mark_model_error"]
 
 # What a constant offset between a recorded channel and the model may
 # honestly be, with no parameter wrong (one standard deviation): marker
