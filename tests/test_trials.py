@@ -154,3 +154,52 @@ def test_dig_trials_on_their_own_clocks_name_the_hidden_drag_and_it_predicts_a_t
     assert named["parameters"]["cd"] == pytest.approx(8.0, rel=0.15)
     rms = doc["held_out"][0]["rms_noise"]
     assert rms["named"] < 2.0 < rms["updated"] < rms["nominal"]
+
+
+def test_trials_that_agree_leave_the_stated_uncertainty_as_it_was(trials):
+    """One true length in every trial: each trial's own estimate agrees with it, the spread between trials is
+    what noise gives (Cochran's Q about its degrees of freedom), and the stated uncertainty stays at the
+    millimetre a 60 mm correction found to 2.5 mm needs - not widened."""
+    length = next(e for e in trials[0]["calibration"]["parameters"] if e["parameter"] == "ropes.line.length")
+    spread = trials[0]["calibration"]["between_trials"]["parameters"]["ropes.line.length"]
+    for value, sd in zip(spread["trial_estimates"], spread["trial_uncertainties"]):
+        assert abs(value - TRUE_LENGTH) < max(3 * sd, 0.0025)
+    assert spread["between_trials_sd"] < 0.002
+    assert length["uncertainty"] < 0.002
+
+
+def test_trials_that_disagree_widen_the_stated_uncertainty_to_their_spread():
+    """Three trials flown with lines of 3.00, 3.06 and 3.12 m (a model wrong differently on each trial) fitted
+    as one rig: the shared length lands among them, each trial's own estimate finds its own line, and the
+    stated uncertainty is the random-effects one - the spread between trials over sqrt(3), with the file's
+    0.05 m tolerance as prior: 1 / sqrt(1 / 0.05^2 + 3 / 0.06^2) = 0.028 m - not the 0.3 mm that pooling all
+    the rows claims."""
+    import tomllib
+
+    from dragline.compare.diagnose import diagnose
+
+    base = tomllib.loads(_rig_text())
+    lengths = {"a": 3.00, "b": 3.06, "c": 3.12}
+    tables, maneuvers = [], []
+    for name, length in lengths.items():
+        doc = tomllib.loads(_rig_text())
+        doc.pop("maneuver", None)
+        doc["ropes"]["line"]["length"] = length
+        amplitude, period, axis, seed, _ = FLIGHTS[name]
+        table, maneuver = _flight(rig_from_dict(doc), amplitude, period, axis, seed, 0.0)
+        tables.append(table)
+        maneuvers.append(maneuver)
+    base.pop("maneuver", None)
+    base["ropes"]["line"]["length"] = 3.06
+    out = diagnose(tables, maneuvers, rig=rig_from_dict(base), discretization="low", candidates=["aero_drag"],
+                   trial_names=list(lengths)).doc
+    length = next(e for e in out["calibration"]["parameters"] if e["parameter"] == "ropes.line.length")
+    spread = out["calibration"]["between_trials"]["parameters"]["ropes.line.length"]
+    assert 3.00 < length["estimate"] < 3.12
+    # One Gauss-Newton step from the shared fit: each trial nearer its own line than its neighbour's.
+    for value, truth in zip(spread["trial_estimates"], lengths.values()):
+        assert value == pytest.approx(truth, abs=0.03)
+    assert spread["between_trials_sd"] == pytest.approx(0.06, rel=0.3)
+    assert length["uncertainty"] == pytest.approx(1 / np.sqrt(1 / 0.05**2 + 3 / 0.06**2), rel=0.35)
+    # A parameter the trials pull apart is never stated wider than the lab's prior.
+    assert all(e["posterior_over_prior"] <= 1.0 + 1e-9 for e in out["calibration"]["parameters"])

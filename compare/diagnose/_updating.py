@@ -58,6 +58,7 @@ from ...simulate import (
     simulate,
 )
 from .._compare import channel_kind
+from ._heterogeneity import between_trials, widened
 from ._hypotheses import _grid_job, _init, _pool, channels_on
 from ._scale import REFERENCE
 from ._trials import apply_to_trials, joined_states, stack_trials, trial_contexts
@@ -352,6 +353,11 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
     z = np.where(problem.valid, problem.measured - sim - _apply(_design(problem, sim, errs), nuis, problem, sim.shape),
                  0.0) * np.sqrt(problem.W)
     robust = robust_covariance(X, z, H_inv, 1.0 / prior_var)
+    spread = between_trials(X, z, np.r_[coords[active], nuis], 1.0 / prior_var, ctx["channels"], len(active),
+                            robust_covariance)
+    p_act = len(active)
+    robust[:p_act, :p_act] = widened(robust[:p_act, :p_act], spread["pooled_sd"] if spread is not None else 0.0,
+                                     prior_sd=tol[active])
     cov = np.diag(tol**2).astype(float)  # a screened-out parameter keeps its prior
     idx = np.ix_(active, active)
     cov[idx] = robust[: len(active), : len(active)]
@@ -361,6 +367,8 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
     offsets = nuis[len(errs):len(errs) + c]
     block = _calibration_block(params, coords, cov, information, strength, offsets, ctx, history,
                                failed_names)
+    if spread is not None:
+        block["between_trials"] = _spread_block(params, coords, active, spread)
     return {"coords": coords, "sim": sim, "initial_state": state, "rig": rig, "maneuver": maneuver,
             "sensitivities": sens, "covariance": cov, "offsets": offsets, "shift": float(nuis[-1]), "block": block,
             "n_simulations": n_sims,
@@ -839,6 +847,24 @@ def _apply(X, a, problem, shape):
     sw = np.sqrt(problem.W)
     fitted = (X @ a).reshape(shape)
     return np.where(sw > 0, fitted / np.where(sw > 0, sw, 1.0), 0.0)
+
+
+def _spread_block(params, coords, active, spread):
+    """The JSON of ``_heterogeneity.between_trials``: per active parameter, each trial's own estimate and
+    standard deviation (the parameter's units), the between-trial standard deviation and Cochran's Q."""
+    out = {"trials": spread["trials"], "parameters": {}}
+    for j, i in enumerate(active):
+        p = params[i]
+        values = [p.value(float(x)) for x in spread["estimates"][:, j]]
+        scale = (lambda v, sd: v * sd) if p.scale == "log" else (lambda v, sd: sd)
+        out["parameters"][p.name] = {
+            "trial_estimates": values,
+            "trial_uncertainties": [scale(v, float(sd)) for v, sd in zip(values, spread["sd"][:, j])],
+            "between_trials_sd": scale(p.value(float(coords[i])), float(spread["tau"][j])),
+            "cochran_q": float(spread["q"][j]),
+            "degrees_of_freedom": len(spread["trials"]) - 1,
+        }
+    return out
 
 
 def _calibration_block(params, coords, cov, information, strength, offsets, ctx, history, failed):
