@@ -181,6 +181,34 @@ def unavailable_reason(candidate, rig, maneuver, discretization):
     return None
 
 
+def bounded_solve(A, g, bounds):
+    """``A x = g`` (normal equations, ``A`` symmetric positive semi-definite) with ``x`` within ``bounds`` (k, 2).
+
+    The unconstrained solution; then, while any coefficient lies outside its
+    bounds, the one furthest outside is held at its bound and the others
+    solved again (an active set without release: exact for one bounded
+    coefficient, which is how the clock shift was always clipped, and for
+    the few here - the shift and the model error's amplitudes - it ends in
+    at most that many rounds).
+    """
+    k = len(g)
+    x = np.linalg.lstsq(A, g, rcond=None)[0]
+    held = np.zeros(k, bool)
+    for _ in range(k):
+        low, high = bounds[:, 0], bounds[:, 1]
+        excess = np.where(held, 0.0, np.maximum(low - x, x - high))
+        worst = int(np.argmax(excess))
+        if excess[worst] <= 0.0:
+            break
+        held[worst] = True
+        x[worst] = np.clip(x[worst], low[worst], high[worst])
+        free = ~held
+        if free.any():
+            x[free] = np.linalg.lstsq(A[np.ix_(free, free)], g[free] - A[np.ix_(free, held)] @ x[held],
+                                      rcond=None)[0]
+    return x
+
+
 class Problem:
     """Measured data, noise levels, weights and folds: evaluates one simulation.
 
@@ -210,7 +238,7 @@ class Problem:
     """
 
     def __init__(self, time, measured, sigma, t_stop, regressors=(), prior_precision=None, prior_mean=None,
-                 shift_center=0.0):
+                 shift_center=0.0, regressor_bounds=None):
         self.time = np.asarray(time, float)
         self.dt = float(self.time[1] - self.time[0])
         self.measured = np.asarray(measured, float)
@@ -231,6 +259,9 @@ class Problem:
         k = len(self.regressors)
         self.prior_precision = np.zeros(k) if prior_precision is None else np.asarray(prior_precision, float)
         self.prior_mean = np.zeros(k) if prior_mean is None else np.asarray(prior_mean, float)
+        # Each regressor's coefficient within (low, high): the model error's amplitude is bounded.
+        self.regressor_bounds = (np.tile([-np.inf, np.inf], (k, 1)) if regressor_bounds is None
+                                 else np.asarray(regressor_bounds, float).reshape(k, 2))
         # The regressors do not change between simulations: centre them and
         # form their Gram matrix once per fold.
         self._fold_regressors = {}
@@ -243,11 +274,12 @@ class Problem:
             gram = np.einsum("inc,jnc->ij", xc * W, xc)
             self._fold_regressors[name] = (xc, gram)
 
-    def with_regressors(self, regressors, prior_precision=None, prior_mean=None, shift_center=None):
-        """The same problem with these nuisance regressors (a new object); the shift's centre kept unless given."""
+    def with_regressors(self, regressors, prior_precision=None, prior_mean=None, shift_center=None, bounds=None):
+        """The same problem with these nuisance regressors (a new object); the shift's centre kept unless given;
+        ``bounds`` (k, 2) on their coefficients (none by default)."""
         centre = self.shift_center if shift_center is None else shift_center
         return Problem(self.time, self.measured, self.sigma, self.t_stop, regressors, prior_precision, prior_mean,
-                       centre)
+                       centre, bounds)
 
     def nuisance(self, sim, rate, fold):
         """Least-squares offsets b (c,), clock shift delta (s) and regressor coefficients a (k,) on one fold."""
@@ -277,11 +309,9 @@ class Problem:
         g[0] = float((W * rc * dc).sum())
         g[1:] = np.einsum("inc,nc->i", xc, W * rc) + self.prior_precision * self.prior_mean
         A[0, 0] = max(A[0, 0], 1e-300)
-        coef = np.linalg.lstsq(A, g, rcond=None)[0]
         c = self.shift_center
-        if abs(coef[0] - c) > MAX_SHIFT:  # the shift at its limit, the rest refitted
-            coef[0] = c + math.copysign(MAX_SHIFT, coef[0] - c)
-            coef[1:] = np.linalg.lstsq(A[1:, 1:], g[1:] - A[1:, 0] * coef[0], rcond=None)[0]
+        bounds = np.vstack([[c - MAX_SHIFT, c + MAX_SHIFT], self.regressor_bounds])
+        coef = bounded_solve(A, g, bounds)
         delta, a = float(coef[0]), coef[1:]
         fitted = delta * rate + np.einsum("i,inc->nc", a, self.regressors)
         b = (W * (r - fitted)).sum(0) / sw

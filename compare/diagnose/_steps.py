@@ -286,7 +286,8 @@ def update_rig(state):
     _note(state, "estimating the model's own numerical error (finer discretization, half time step)")
     directions, block = model_error(problem, ctx, state.nominal_sim, workers=workers)
     if not ctx["parameters"]:
-        return replace(state, problem=problem.with_regressors(directions), base_sim=state.nominal_sim,
+        return replace(state, problem=problem.with_regressors(directions, bounds=directions.amplitude_bounds()),
+                       base_sim=state.nominal_sim,
                        error_directions=directions, model_error_block=block, model_error_sims=2)
     _note(state, f"updating {len(ctx['parameters'])} rig parameters within their tolerances")
     update = update_model(problem, ctx, state.nominal_sim, directions, workers=workers, progress=note)
@@ -304,7 +305,9 @@ def update_rig(state):
     updated_problem = problem.with_regressors(
         [*update["sensitivities"], *directions],
         prior_precision=np.r_[1.0 / tol**2, np.zeros(len(directions))],
-        prior_mean=np.r_[-update["coords"], np.zeros(len(directions))], shift_center=update["shift"])
+        prior_mean=np.r_[-update["coords"], np.zeros(len(directions))], shift_center=update["shift"],
+        bounds=np.vstack([np.tile([-np.inf, np.inf], (len(update["sensitivities"]), 1)),
+                          directions.amplitude_bounds()]))
     return replace(state, problem=updated_problem,
                    ctx=dict(ctx, rig=update["rig"], maneuver=update["maneuver"],
                             initial_state=update["initial_state"]),
@@ -597,7 +600,8 @@ def test_second_mechanism(state):
         ctx = dict(ctx, rig=joint["rig"], maneuver=joint["maneuver"], initial_state=joint["initial_state"])
         problem = problem.with_regressors(
             problem.regressors, prior_precision=problem.prior_precision,
-            prior_mean=np.r_[-joint["coords"], np.zeros(len(state.error_directions))])
+            prior_mean=np.r_[-joint["coords"], np.zeros(len(state.error_directions))],
+            bounds=problem.regressor_bounds)
         main = named["main_parameter"]
         base_sim = joint["sim"]
         named = dict(named, parameters=dict(named["parameters"], **{main: float(joint["mechanism"].parameters[main])}))

@@ -61,11 +61,11 @@ from ...simulate import (
 )
 from .._compare import channel_kind
 from ._heterogeneity import between_trials, widened
-from ._hypotheses import _grid_job, _init, _pool, channels_on
+from ._hypotheses import _grid_job, _init, _pool, bounded_solve, channels_on
 from ._scale import REFERENCE
 from ._trials import apply_to_trials, joined_states, stack_trials, trial_contexts
 
-__all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "update_model", "robust_covariance", "joint_refit", "model_error",
+__all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "ErrorDirections", "update_model", "robust_covariance", "joint_refit", "model_error",
            "finer_discretization", "nuisance_correlation", "mark_model_error"]
 
 # What a constant offset between a recorded channel and the model may
@@ -150,6 +150,41 @@ def _rig_job(coords, discretization=None, dt_factor=None, guess=None):
     return stack_trials(ctx, sims), joined_states(ctx, states)
 
 
+class ErrorDirections(list):
+    """The model's own numerical error directions (``model_error``), each with the most its amplitude can be.
+
+    ``bounds[i]``: direction ``i`` is the next finer model minus the
+    nominal one; the nominal model's distance from the converged solution
+    is ``R`` times that, ``R = 1 / (1 - (h' / h)^p)`` (Richardson) for a
+    step ``h`` refined to ``h'`` at convergence order ``p``. At first order,
+    the slowest any of the model's schemes converges, ``R`` is largest:
+    ``n' / (n' - n)`` for a rope's particle count ``n`` raised to ``n'``
+    (the largest over the ropes), 2 for the halved time step. The
+    amplitude lies in ``[0, R]`` - towards the finer model, since the
+    levels converge one way. Unbounded, a direction that looks like a
+    parameter's change absorbs any amount of it: on a pendulum whose
+    discretization error is a shift of its frequency, as the ball's mass
+    centre is, amplitude 23 took up four fifths of a tolerance's change,
+    which the updating then missed.
+    """
+
+    def __init__(self, directions=(), bounds=()):
+        super().__init__(directions)
+        self.bounds = [float(b) for b in bounds]
+
+    def amplitude_bounds(self):
+        """(k, 2): each amplitude's low and high."""
+        return np.array([[0.0, b] for b in self.bounds]).reshape(len(self), 2)
+
+
+def richardson_bound(rig, discretization, finer):
+    """First-order Richardson factor of a refinement from ``discretization`` to ``finer`` (see
+    ``ErrorDirections``); 1 when no count changes."""
+    coarse, fine = rig.particle_counts(discretization), rig.particle_counts(finer)
+    ratios = [fine[name] / (fine[name] - n) for name, n in coarse.items() if fine.get(name, n) > n]
+    return max(ratios, default=1.0)
+
+
 def finer_discretization(rig, discretization):
     """The next finer named level, or every count up by half for a custom one."""
     if isinstance(discretization, str) and discretization in DISCRETIZATION_LEVELS:
@@ -189,9 +224,11 @@ def model_error(problem, ctx, nominal_sim, workers=2):
         results = pool.map(_rig_job, jobs)
     finally:
         pool.close()
-    directions, block = [], {}
-    described = {"discretization": {"compared": [_level_name(ctx["discretization"]), _level_name(finer)]},
-                 "time_step": {"compared": [f"{ctx['nominal_dt']:.3g} s", f"{0.5 * ctx['nominal_dt']:.3g} s"]}}
+    directions, bounds, block = [], [], {}
+    described = {"discretization": {"compared": [_level_name(ctx["discretization"]), _level_name(finer)],
+                                    "amplitude_bound": richardson_bound(ctx["rig"], ctx["discretization"], finer)},
+                 "time_step": {"compared": [f"{ctx['nominal_dt']:.3g} s", f"{0.5 * ctx['nominal_dt']:.3g} s"],
+                               "amplitude_bound": 2.0}}
     for (name, entry), (sim, _) in zip(described.items(), results):
         if sim is None:
             entry["status"] = "failed"
@@ -204,11 +241,12 @@ def model_error(problem, ctx, nominal_sim, workers=2):
                  "rms_noise": float(np.sqrt(np.mean(d[:, j] ** 2)) / problem.sigma[j])}
             for j, ch in enumerate(ctx["channels"])})
         directions.append(d)
+        bounds.append(entry["amplitude_bound"])
         block[name] = entry
     block["method"] = ("the nominal model against itself at the next finer discretization and at half the time "
-                       "step, on the recording's maneuver; both differences are fitted as free nuisance directions "
-                       "with every candidate")
-    return directions, block
+                       "step, on the recording's maneuver; both differences are fitted as nuisance directions with "
+                       "every candidate, each amplitude between 0 and its first-order Richardson factor")
+    return ErrorDirections(directions, bounds), block
 
 
 def _offset_prior(ctx):
@@ -274,8 +312,8 @@ def _design(problem, sim, sensitivities):
     return np.stack([col.ravel() for col in cols], axis=1)
 
 
-def _solve(problem, X, prior_var, prior_mean, residual):
-    """Least squares X a = r with the prior N(prior_mean, prior_var).
+def _solve(problem, X, prior_var, prior_mean, residual, bounds=None):
+    """Least squares X a = r with the prior N(prior_mean, prior_var), ``a`` within ``bounds`` (p, 2) if given.
 
     Returns
     -------
@@ -284,8 +322,17 @@ def _solve(problem, X, prior_var, prior_mean, residual):
         The inverse of the posterior's Hessian.
     """
     z = (np.where(problem.valid, residual, 0.0) * np.sqrt(problem.W)).ravel()
-    H_inv = np.linalg.inv(X.T @ X + np.diag(1.0 / prior_var))
-    return H_inv @ (X.T @ z + prior_mean / prior_var), H_inv
+    H = X.T @ X + np.diag(1.0 / prior_var)
+    g = X.T @ z + prior_mean / prior_var
+    H_inv = np.linalg.inv(H)
+    return (H_inv @ g if bounds is None else bounded_solve(H, g, bounds)), H_inv
+
+
+def _nuisance_bounds(errs, c):
+    """(e + c + 1, 2): the model error's amplitudes bounded (``ErrorDirections``), offsets and shift free."""
+    free = np.tile([-np.inf, np.inf], (c + 1, 1))
+    own = errs.amplitude_bounds() if isinstance(errs, ErrorDirections) else np.tile([-np.inf, np.inf], (len(errs), 1))
+    return np.vstack([own.reshape(len(errs), 2), free])
 
 
 def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, progress=None, start=None):
@@ -343,7 +390,7 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
             strength, active, failed = start["strength"], start["active"], start["failed"]
             n_sims = start["n_simulations"]
         offset_sd = _offset_prior(ctx)
-        errs = list(error_directions)
+        errs = error_directions if isinstance(error_directions, ErrorDirections) else list(error_directions)
         err_var = np.full(len(errs), ERROR_AMPLITUDE_SD**2)
         fit = _trust_region(problem, pool, _Fit(coords, sim, state, sens), active, tol, offset_sd, errs,
                             MAX_JACOBIANS, lambda m: note(f"updating: {m}"))
@@ -429,7 +476,7 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     params = list(ctx["parameters"])
     tol = np.array([p.tolerance for p in params])
     active = update["active"]
-    errs = list(error_directions)
+    errs = error_directions if isinstance(error_directions, ErrorDirections) else list(error_directions)
     offset_sd = _offset_prior(ctx)
     job_ctx = dict(ctx, base_physics=[mechanism])
     _init(job_ctx)
@@ -662,14 +709,21 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
 def _projected_jacobian(problem, sim, coords, sens, active, tol, offset_sd, errs):
     """The residual's Jacobian in the active coordinates, the linear nuisance projected out (Kaufman), with
     the priors' rows: what ``_trust_region``'s residual vector is differentiated into."""
-    k = len(coords)
+    k, c, e = len(coords), sim.shape[1], len(errs)
     X = _design(problem, sim, errs)
-    _, _, _, H_inv = _objective_at(problem, sim, coords, tol, offset_sd, errs)
+    _, _, nuis, _ = _objective_at(problem, sim, coords, tol, offset_sd, errs)
+    # A model-error amplitude held at its bound does not follow the parameters: not projected out.
+    bounds = _nuisance_bounds(errs, c)
+    free = ~((nuis <= bounds[:, 0]) | (nuis >= bounds[:, 1]))
+    prior_var = np.r_[np.full(e, ERROR_AMPLITUDE_SD**2), offset_sd**2, MAX_SHIFT_PRIOR**2]
+    Xf = X[:, free]
+    H_inv = np.linalg.inv(Xf.T @ Xf + np.diag(1.0 / prior_var[free]))
     sw = np.sqrt(problem.W)
     cols = []
     for i in active:
         v = (np.where(problem.valid, sens[i], 0.0) * sw).ravel()
-        a = H_inv @ (X.T @ v)
+        a = np.zeros(len(nuis))
+        a[free] = H_inv @ (Xf.T @ v)
         unit = np.zeros(k)
         unit[i] = 1.0
         cols.append(np.r_[-(v - X @ a), _prior_rows(-a, unit, tol, offset_sd, errs)])
@@ -781,7 +835,7 @@ def _objective_at(problem, sim, coords, tol, offset_sd, errs):
     c, e = sim.shape[1], len(errs)
     X = _design(problem, sim, errs)
     a, H_inv = _solve(problem, X, np.r_[np.full(e, ERROR_AMPLITUDE_SD**2), offset_sd**2, MAX_SHIFT_PRIOR**2],
-                      np.zeros(e + c + 1), problem.measured - sim)
+                      np.zeros(e + c + 1), problem.measured - sim, bounds=_nuisance_bounds(errs, c))
     r = problem.measured - sim - _apply(X, a, problem, sim.shape)
     z = np.where(problem.valid, r, 0.0)
     chi2 = float((problem.W * z * z).sum())
