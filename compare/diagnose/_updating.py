@@ -22,11 +22,10 @@ step. The nuisance - one constant offset per channel (marker placement and
 calibration: prior ``OFFSET_PRIOR``, so a static offset goes to the
 parameters when they can make it within tolerance), the clock shift and the
 model-error amplitudes (below) - is linear and is projected out at every
-evaluation (variable projection). It stops when
-the number of parameters it moves (what they would gain on pure noise)
-(what they would gain on the residual's own scatter: ``enough`` in
-``_trust_region``) is all the next Gauss-Newton step promises, or after
-``MAX_JACOBIANS``. Uncertainties come from the
+evaluation (variable projection). It stops when the next Gauss-Newton
+step promises less than the number of parameters it moves times the
+residual's dispersion (what they would gain on the residual's own
+scatter), or after ``MAX_JACOBIANS``. Uncertainties come from the
 posterior covariance taken robustly (``robust_covariance``: a sandwich
 whose middle is the residual's own scatter, summed over blocks as long as
 its autocorrelation time), so that a residual the model leaves structured
@@ -39,9 +38,11 @@ Model error
 The nominal model is simulated once more at the next finer discretization
 and once with half the time step. Their differences from the model are
 the directions in which its numerical error lies on this maneuver; they
-are reported (RMS per channel in noise units) and fitted as free nuisance
-regressors with every candidate, so a mismatch the finer model also shows
-is never credited to missing physics; a located mismatch within
+are reported (RMS per channel in noise units) and fitted as nuisance
+regressors with every candidate, each amplitude within what Richardson
+extrapolation allows (``ErrorDirections``), so a mismatch the finer model
+also shows is never credited to missing physics, nor a parameter's change
+to the model's error; a located mismatch within
 ``MODEL_ERROR_FACTOR`` times their size in its channel and window is
 marked as the model's own error (``mark_model_error``).
 """
@@ -65,8 +66,8 @@ from ._hypotheses import _grid_job, _init, _pool, bounded_solve, channels_on
 from ._scale import REFERENCE
 from ._trials import apply_to_trials, joined_states, stack_trials, trial_contexts
 
-__all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "ErrorDirections", "update_model", "robust_covariance", "joint_refit", "model_error",
-           "finer_discretization", "nuisance_correlation", "mark_model_error"]
+__all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "ErrorDirections", "update_model", "robust_covariance", "joint_refit",
+           "model_error", "finer_discretization", "nuisance_correlation", "mark_model_error"]
 
 # What a constant offset between a recorded channel and the model may
 # honestly be, with no parameter wrong (one standard deviation): marker
@@ -108,9 +109,10 @@ JOINT_XATOL = 0.02  # in ln p
 # Two parameters whose posterior correlation exceeds this are reported as a
 # pair the recording can move only together.
 DEGENERATE = 0.9
-# The model error's amplitude is free (a wide prior): the finer model's
-# difference is its direction, not its size (Richardson's factor depends on
-# the order of convergence).
+# The model error's amplitude has a wide prior (its size is set by its
+# bounds, ``ErrorDirections``; the prior only keeps the normal equations
+# regular): the finer model's difference is its direction, and Richardson's
+# factor depends on the order of convergence.
 ERROR_AMPLITUDE_SD = 10.0
 # A located mismatch no larger than this many times the finer model's
 # difference there is the model's own error: the next finer level is not
