@@ -681,8 +681,10 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
             fit.sens, bad = _sensitivities(pool, coords, active, tol, sim, state, fit.sens, known)
             fit.failed = sorted(set(fit.failed) | set(bad))
             fit.n_sims += len(active) - len(known)
+        at_start = jacobians[0] == 0 and coords.tobytes() in start
         jacobians[0] += 1
-        stop["J"] = _projected_jacobian(problem, sim, coords, fit.sens, active, tol, offset_sd, errs)
+        stop["J"] = start.pop(coords.tobytes()) if at_start else _projected_jacobian(
+            problem, sim, coords, fit.sens, active, tol, offset_sd, errs)
         return stop["J"]
 
     def callback(intermediate_result):  # noqa: ARG001 (scipy passes the iterate)
@@ -695,8 +697,12 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
     if fun(x0) is None:
         return fit
     fit.history = [{"evaluations": fit.n_sims, "objective": best["objective"], "chi2": best["chi2"]}]
-    start_gain = predicted_gain(_projected_jacobian(problem, fit.sim, full(x0), fit.sens, active, tol, offset_sd,
-                                                    errs), residuals[full(x0).tobytes()]) if len(active) else 0.0
+    start = {}  # the start's Jacobian (its sensitivities are given), which trf asks for first
+    start_gain = 0.0
+    if len(active):
+        coords0, (sim0, _) = simulated(x0)
+        start[coords0.tobytes()] = _projected_jacobian(problem, sim0, coords0, fit.sens, active, tol, offset_sd, errs)
+        start_gain = predicted_gain(start[coords0.tobytes()], residuals[coords0.tobytes()])
     fit.history[0]["predicted_gain"] = start_gain
     if len(active) and start_gain >= enough():
         least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=tol[active], method="trf",
