@@ -273,3 +273,16 @@ def test_the_joint_searchs_first_points_are_scipys(bounds):
         start = bounded_brent_start(*bounds, 0.02)
         assert tuple(seen[:len(start)]) == start
         assert len(start) == min(len(seen), 2)
+
+
+def test_the_predicted_gain_is_the_residuals_part_in_the_jacobians_span():
+    from dragline.compare.diagnose._updating import predicted_gain
+
+    rng = np.random.default_rng(3)
+    J = rng.normal(size=(50, 3))
+    a = np.array([0.5, -2.0, 1.0])
+    e = rng.normal(size=50)
+    e -= J @ np.linalg.lstsq(J, e, rcond=None)[0]  # orthogonal to J's columns: no step can remove it
+    r = J @ a + e
+    # A full Gauss-Newton step removes J a and leaves e: |r|^2 - |e|^2 = |J a|^2.
+    assert predicted_gain(J, r) == pytest.approx(float((J @ a) @ (J @ a)), rel=1e-10)
