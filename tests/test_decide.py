@@ -96,6 +96,25 @@ def test_two_candidates_within_the_threshold_cannot_be_told_apart_unless_one_sit
     assert verdict == "pulley_inertia"
 
 
+def test_a_lead_counts_when_it_beats_noise_and_the_record_holds_it_throughout():
+    # Gantry crane case 83709 (hook-sheave friction hidden): held-out improvements 5.23e6 and 4.81e6, a
+    # threshold of 889,521 (the model-error budget) of which noise alone gives 2,702; friction better
+    # in all 15 one-second batches.
+    best = _hypothesis("pulley_friction", 5.2268e6, 13.7, 2.43)
+    rival = _hypothesis("aero_drag", 4.8055e6, 13.7, 4.53)
+    held = {"lead": 421319.3, "t": 3.95, "critical": 2.62, "batches": 15, "consistent": True}
+    verdict, _ = decide([dict(best, leads={"aero_drag": held}), rival], 889521.0, [], [], noise_threshold=2702.0)
+    assert verdict == "pulley_friction"
+    # The same lead from a stretch of the record (case 83702's t of 0.55): not told apart.
+    verdict, reason = decide([dict(best, leads={"aero_drag": dict(held, t=0.55, consistent=False)}), rival],
+                             889521.0, [], [], noise_threshold=2702.0)
+    assert verdict == "unexplained" and "does not hold throughout" in reason and "t = 0.55" in reason
+    # A lead less than noise alone gives, however consistent: not told apart.
+    verdict, reason = decide([dict(best, leads={"aero_drag": held}), rival], 889521.0, [], [],
+                             noise_threshold=500000.0)
+    assert verdict == "unexplained" and "less than noise alone gives" in reason
+
+
 def test_a_joint_refit_searches_within_the_candidates_range():
     lo, hi = joint_value_bounds(0.012, (0.01, 1.0))
     assert lo == pytest.approx(math.log(0.01)) and hi == pytest.approx(math.log(0.012) + JOINT_SPAN)

@@ -19,7 +19,6 @@ from dragline.compare.diagnose._hypotheses import MAX_SHIFT, Problem, channels_o
 from dragline.compare.diagnose._locate import DYNAMIC_CHANNELS
 from dragline.compare.diagnose._updating import (
     FD_FRACTION,
-    bounded_brent_start,
     model_error,
     nuisance_correlation,
     parameter_span_share,
@@ -258,21 +257,6 @@ def test_the_clock_shift_is_bounded_about_the_updated_models_own():
     assert centred.evaluate(sim)["full"] < 1.5 * centred.n_weighted
     # The regressors' problem keeps the centre.
     assert centred.with_regressors([sim_late - sim]).shift_center == -0.015
-
-
-@pytest.mark.parametrize("bounds", [(-4.5, -3.7), (0.0, 1e-3), (-1.0, 2.0)])
-def test_the_joint_searchs_first_points_are_scipys(bounds):
-    # The joint refit simulates them together before the search asks for them: they must be the very
-    # points scipy's bounded search evaluates first, whatever the function.
-    from scipy.optimize import minimize_scalar
-
-    for f in (lambda x: (x - bounds[0]) ** 2, lambda x: -x, np.cos):
-        seen = []
-        minimize_scalar(lambda x: seen.append(x) or f(x), bounds=bounds, method="bounded",
-                        options={"xatol": 0.02, "maxiter": 5})
-        start = bounded_brent_start(*bounds, 0.02)
-        assert tuple(seen[:len(start)]) == start
-        assert len(start) == min(len(seen), 2)
 
 
 def test_the_predicted_gain_is_the_residuals_part_in_the_jacobians_span():

@@ -64,6 +64,18 @@ def model_error_share(excess, n_weighted):
     return MODEL_ERROR_SHARE * min(1.0, max(0.0, excess) / (MODEL_ERROR_FULL * n_weighted))
 
 
+def _no_lead(best, rival, noise):
+    """Why ``best`` does not lead ``rival`` (a phrase), or None when it does."""
+    lead = best["improvement"] - rival["improvement"]
+    if lead < noise:
+        return f"a lead of {lead:.1f}, less than noise alone gives ({noise:.1f})"
+    test = (best.get("leads") or {}).get(rival["name"])
+    if test is not None and not test["consistent"]:
+        return (f"a lead of {lead:.1f} that the record does not hold throughout (t = {test['t']:.2f} over "
+                f"{test['batches']} batches, {test['critical']:.2f} needed)")
+    return None
+
+
 def leftover_share(hypothesis):
     """Share of the excess held-out chi2 over noise that a candidate leaves (0 = all explained)."""
     before, after = hypothesis.get("rms_before"), hypothesis.get("rms_after")
@@ -73,7 +85,7 @@ def leftover_share(hypothesis):
 
 
 def decide(hypotheses, threshold, structured_before, structured_after, offsets_ok=True, offsets_note=None,
-           updates=()):
+           updates=(), noise_threshold=None):
     """The verdict: a mechanism, "none" or "unexplained", and why.
 
     Parameters
@@ -85,6 +97,9 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
         RMS residual in noise sigmas, without and with the candidate).
     threshold : float
         Null-test threshold on the held-out improvement.
+    noise_threshold : float, optional
+        Its part that noise alone gives (the surrogates'; ``threshold`` by
+        default): a lead over a rival must beat it (rule 4).
     structured_before, structured_after : list of dict
         Significant mismatch entries (``_locate.locate_mismatch``) of the
         nominal model and of the best significant candidate.
@@ -108,9 +123,11 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
     3. The best significant candidate at either end of its plausible
        range, or at the end of what could be simulated: "unexplained" (the
        effect is larger, or other, than that mechanism could plausibly give).
-    4. The runner-up significant too, inside its range, and the two
-       held-out improvements closer than the threshold: "unexplained"
-       (indistinguishable). A runner-up at an end of its range is no rival.
+    4. A significant rival inside its range that the best does not lead
+       beyond what noise alone gives (``noise_threshold``) or not
+       consistently over the record (``_lead.lead_test``, the best's
+       ``leads``): "unexplained" (indistinguishable). A rival at an end of
+       its range is no rival.
     4b. The best candidate's signature correlates with a rig parameter's
        sensitivity beyond ``CONFOUNDED`` and that parameter could make it
        within ``BOUND_TOLERANCES`` of its tolerance (the updating's own
@@ -172,12 +189,13 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
     # itself (rule 3), and its improvement there is mostly the joint refit's
     # parameters (a hidden sheave inertia's rival, chain-link friction, sat
     # at its lower end within the noise threshold of the right one).
-    rivals = [h for h in sig[1:] if not h["at_bound"]]
-    if rivals and best["improvement"] - rivals[0]["improvement"] < threshold:
-        return "unexplained", (f"{best['name']} and {rivals[0]['name']} explain the mismatch about equally well "
-                               f"(held-out improvements {best['improvement']:.1f} and "
-                               f"{rivals[0]['improvement']:.1f}, closer than the noise threshold {threshold:.1f}); "
-                               "the data cannot tell them apart")
+    noise = threshold if noise_threshold is None else noise_threshold
+    for rival in (h for h in sig[1:] if not h["at_bound"]):
+        why = _no_lead(best, rival, noise)
+        if why:
+            return "unexplained", (f"{best['name']} and {rival['name']} explain the mismatch about equally well "
+                                   f"(held-out improvements {best['improvement']:.1f} and "
+                                   f"{rival['improvement']:.1f}: {why}); the data cannot tell them apart")
     confounded = [e for e in best.get("nuisance_correlation") or () if abs(e["correlation"]) > CONFOUNDED
                   and e.get("tolerances_needed", 0.0) <= BOUND_TOLERANCES]
     if confounded:

@@ -356,6 +356,21 @@ class Problem:
                 out[fit + ev] = float(sq[self.folds[ev]].sum())
         return out
 
+    def held_out_loss(self, sim_a, sim_b):
+        """Each sample's held-out chi2 (n,): fold B's with the fit on A (``sim_a``), fold A's with the fit on B.
+
+        Summed over samples it is ``evaluate``'s ``AB`` of ``sim_a`` plus
+        ``BA`` of ``sim_b``: a candidate's held-out score, sample by sample.
+        """
+        out = np.zeros(self.time.size)
+        for sim, fit, held in ((sim_a, "A", "B"), (sim_b, "B", "A")):
+            sim = np.asarray(sim, float)
+            rate = np.gradient(sim, self.dt, axis=0)
+            r = self.m0 - sim - self._nuisance_part(rate, self.nuisance(sim, rate, fit))
+            mask = self.folds[held]
+            out[mask] = (self.W * r * r)[mask].sum(1)
+        return out
+
 
 # ---------------------------------------------------------------- simulation workers
 
@@ -625,6 +640,7 @@ def score_candidate(problem, candidate, points):
         "fold_values": [fa[0], fb[0]],
         "heldout_before": held_before,
         "heldout_after": held_after,
+        "held_out_loss": problem.held_out_loss(fa[1], fb[1]),
         "improvement": held_before - held_after,
         "at_bound": at_bound,
         "profile": evaluated,
