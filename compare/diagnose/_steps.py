@@ -415,7 +415,8 @@ def refit_rivals(state):
     Whether a lead is real (``_decide`` rule 4) is judged between fits on
     equal terms: a rival fitted only on the rig updated without it was
     compared with a lead whose parameters moved with it. Rivals within the
-    threshold of the lead get their own joint refit. On a gantry crane with
+    threshold of the lead get their own joint refit, when the lead is
+    beyond the threshold itself. On a gantry crane with
     air drag (cd 0.9) the lead, hook-sheave friction, fitted 0.6 % better
     than drag with its parameters freed and drag's not; drag's own joint
     refit reached the objective of the truth and led by 5,200.
@@ -424,6 +425,8 @@ def refit_rivals(state):
     if state.update is None or not eligible or eligible[0]["name"] not in state.joints:
         return state
     lead = state.scored[eligible[0]["name"]]["improvement"]
+    if lead <= state.null.threshold:
+        return state  # a lead that could not be named has no rival to be told apart from
     rivals = [c for c in eligible[1:] if c["name"] not in state.joints
               and lead - state.scored[c["name"]]["improvement"] < state.null.threshold]
     if not rivals:
