@@ -45,6 +45,7 @@ from ._hypotheses import (
     signature_match,
     unavailable_reason,
 )
+from ._lead import lead_test
 from ._locate import LOWPASS_S, locate_mismatch, noise_level, time_windows
 from ._recording import (
     MIN_DECAY_S,
@@ -57,7 +58,6 @@ from ._recording import (
 )
 from ._predict import held_out_entry
 from ._scale import machine_scale
-from ._lead import lead_test
 from ._second_round import second_round
 from ._state import NullTest, Recording
 from ._trials import SEPARATOR, first_maneuver
@@ -682,5 +682,5 @@ def predict_held_out(state):
 
 
 STEPS = (align_recording, locate_nominal, update_rig, locate_updated, fit_mechanisms, refit_jointly,
-         test_against_noise, refit_rivals, score_hypotheses, locate_after, judge_offsets, decide_verdict, test_second_mechanism,
-         predict_held_out)
+         test_against_noise, refit_rivals, score_hypotheses, locate_after, judge_offsets, decide_verdict,
+         test_second_mechanism, predict_held_out)
