@@ -640,7 +640,7 @@ def score_candidate(problem, candidate, points):
         "fold_values": [fa[0], fb[0]],
         "heldout_before": held_before,
         "heldout_after": held_after,
-        "held_out_loss": problem.held_out_loss(fa[1], fb[1]),
+        "fold_sims": (fa[1], fb[1]),
         "improvement": held_before - held_after,
         "at_bound": at_bound,
         "profile": evaluated,

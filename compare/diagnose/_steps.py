@@ -389,23 +389,24 @@ def _refit(state, candidates):
     """Each candidate refitted jointly with the rig parameters (``joint_refit``), its score on the joint point."""
     problem, update = state.problem, state.update
     scored, points, joints = dict(state.scored), dict(state.points), dict(state.joints)
-    for lead in candidates:
-        s = scored[lead["name"]]
-        _note(state, f"refitting {lead['name']} and the rig parameters together")
+    for candidate in candidates:
+        name = candidate["name"]
+        s = scored[name]
+        _note(state, f"refitting {name} and the rig parameters together")
         joint = joint_refit(state.plain_problem, state.nominal_ctx, update,
-                            make_mechanism(lead["name"], **{lead["main"]: s["value"]}), state.error_directions,
-                            workers=state.workers, progress=state.note, value_range=lead["searched"])
+                            make_mechanism(name, **{candidate["main"]: s["value"]}), state.error_directions,
+                            workers=state.workers, progress=state.note, value_range=candidate["searched"])
         if joint is None:
             continue
-        joints[lead["name"]] = joint
-        value = float(joint["mechanism"].parameters[lead["main"]])
-        points[lead["name"]] = [*points[lead["name"]], (value, joint["sim"], problem.evaluate(joint["sim"]))]
+        joints[name] = joint
+        value = float(joint["mechanism"].parameters[candidate["main"]])
+        points[name] = [*points[name], (value, joint["sim"], problem.evaluate(joint["sim"]))]
         # The profile's curvature comes from the search on one rig; the
         # joint point sits on another and would bend the parabola.
-        rescored = score_candidate(problem, lead, points[lead["name"]])
+        rescored = score_candidate(problem, candidate, points[name])
         rescored["profile"] = s["profile"]
         rescored["n_simulations"] += joint["n_simulations"] - 1
-        scored[lead["name"]] = rescored
+        scored[name] = rescored
     return replace(state, points=points, scored=scored, joints=joints)
 
 
@@ -549,9 +550,9 @@ def score_hypotheses(state):
         h["leftover_share"] = leftover_share(h)
     hypotheses.sort(key=lambda h: -h["improvement"])
     # Each candidate's lead over every one behind it, sample by sample (``_lead``).
+    losses = {h["name"]: problem.held_out_loss(*state.scored[h["name"]]["fold_sims"]) for h in hypotheses}
     for k, h in enumerate(hypotheses):
-        mine = state.scored[h["name"]]["held_out_loss"]
-        h["leads"] = {o["name"]: lead_test(problem.time, mine, state.scored[o["name"]]["held_out_loss"])
+        h["leads"] = {o["name"]: lead_test(problem.time, losses[h["name"]], losses[o["name"]])
                       for o in hypotheses[k + 1:]}
     for k, h in enumerate(sorted(hypotheses, key=lambda h: -h["signature_match"])):
         h["signature_rank"] = k + 1

@@ -512,6 +512,8 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
         n_sims += fit.n_sims
     finally:
         pool.close()
+    if fit.nuisance is None:
+        return None  # the start, moved inside the value's bounds, could not be simulated
     coords, state = fit.coords[:k], fit.state
     value = value0 * math.exp(float(fit.coords[k]))
     rig, maneuver = apply_to_trials(ctx, params, coords)
