@@ -28,6 +28,7 @@ from ._modes import Modes, linear_modes
 from ._physics import MECHANISMS, Mechanism, make_mechanism, mechanism_names, parse_physics
 from ._rig import BUILT_IN_RIGS, DISCRETIZATION_LEVELS, Rig, load_rig, rig_from_dict
 from ._simulate import SimulationError, SimulationResult, simulate
+from ._sensitivity import Sensitivities, TangentUnavailable, simulate_sensitivities
 from ._statics import Equilibrium, StaticsError, solve_statics
 from ._time_step import stable_time_step
 from ._tolerances import RigParameter, apply_parameters, draw_parameters

@@ -70,6 +70,9 @@ class SimulationResult:
         Wall time (s) of the call's parts: ``statics_s`` (0 when started
         from ``initial_state``) and ``integrate_s`` (choosing the step and
         integrating); what ``dragline bench simulate`` reports.
+    substeps : ndarray (N - 1,) of int, optional
+        Verlet steps taken in each record interval (the schedule
+        ``sensitivities`` differentiates on); None for RK4.
     """
 
     time: np.ndarray
@@ -80,6 +83,7 @@ class SimulationResult:
     steps: int = 0
     dt_start: float = float("nan")
     timings: dict = field(default_factory=dict)
+    substeps: np.ndarray | None = None
 
     @property
     def table(self):
@@ -417,12 +421,14 @@ def simulate(
                 f"the rig stiffens beyond what can be integrated: at t = {bad_time:.3f} s a step of "
                 f"{out_dt / max(bad_index, 1):.2g} s would be needed (a rope or chain element near zero length? "
                 f"check the maneuver's reel lengths), more than the {MAX_STEPS:.0e} steps allowed")
+        schedule = substeps if method == VERLET else None
         step = out_dt / max(int(substeps.max(initial=1)), 1)  # the smallest step taken
         steps, dt_start = int(substeps.sum()), out_dt / max(int(substeps[0]), 1) if len(substeps) else dt0
     else:
         per_record = max(1, int(np.ceil(out_dt / float(dt) - 1e-9)))
         step = dt_start = out_dt / per_record
         steps = n_records * per_record
+        schedule = np.full(n_records, per_record, np.int64) if method == VERLET else None
         if method == VERLET:
             # lam0 = inf: the step is never cut, nor refined at a slack change (a fixed step was asked)
             records, _, status, bad_time, bad_index = integrate_tracked(
@@ -441,4 +447,5 @@ def simulate(
     time = t0 + np.arange(records.shape[0]) * out_dt
     return SimulationResult(time=time, states=records, model=model, dt=step, equilibrium_residual=residual,
                             steps=steps, dt_start=dt_start,
-                            timings={"statics_s": statics_s, "integrate_s": integrate_s})
+                            timings={"statics_s": statics_s, "integrate_s": integrate_s},
+                            substeps=None if schedule is None else schedule[: records.shape[0] - 1])
