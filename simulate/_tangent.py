@@ -15,9 +15,12 @@ damping, lengths, densities, drag areas, a sheave's added mass and bearing
 damping, the reel and fixed-point tables), with the initial state's own
 perturbation; ``_sensitivity`` maps a rig's parameters onto both.
 
-The dissipative impulses (``_kernel.dissipate``: bending damping, chain-link
-and ring friction, Coulomb laws applied as implicit impulses) have no
-tangent here: a model that has them is refused (``has_dissipation``).
+Of the dissipative impulses (``_kernel.dissipate``) ring friction is
+carried (``_ring_friction_tangent``: a slipping ring's impulse
+differentiated, a stuck one's derivative zero, as the stuck state is); the
+joints' (bending damping, chain-link friction: a Gauss-Seidel sweep of
+implicit impulses) are not, and a model that has them is refused
+(``has_joint_impulses``).
 """
 
 from __future__ import annotations
@@ -28,17 +31,18 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from ._kernel import NO_REFCOUNT, REBASE_ROLL, _body_matrix, _body_pose, _offsets, rebase, record_state, rhs, rhs_maxwell_update
+from ._kernel import (NO_REFCOUNT, REBASE_ROLL, _body_matrix, _body_pose, _offsets, dissipate, rebase, record_state, rhs,
+                      rhs_maxwell_update)
 from ._verlet import _euler_angle_rates, _euler_angle_rates_trig, _maxwell_factors, element_stretch
 
 __all__ = ["TANGENT_FIELDS", "TangentModel", "make_tangent_work", "integrate_tangent", "rhs_tangent_at",
-           "has_dissipation"]
+           "has_joint_impulses"]
 
 # The kernel model's fields a direction perturbs; each tangent array has the field's shape plus (nd,).
 TANGENT_FIELDS = (
     "body_mass", "body_I", "body_Iinv", "bnode_arm",
     "seg_ks", "seg_kv", "seg_relax", "seg_len0", "seg_reel_off", "seg_rho", "seg_cda",
-    "ring_added_mass", "ring_visc", "body_cda", "reel_len", "point_pos",
+    "ring_added_mass", "ring_visc", "ring_mu", "body_cda", "reel_len", "point_pos",
 )
 TangentModel = namedtuple("TangentModel", TANGENT_FIELDS)
 
@@ -57,9 +61,9 @@ TangentWork = namedtuple("TangentWork", [
 ])
 
 
-def has_dissipation(m):
-    """True if the model has impulses (``_kernel.dissipate``) the tangent does not carry."""
-    return m.has_joints != 0 or m.has_ring_friction != 0
+def has_joint_impulses(m):
+    """True if the model has the joints' impulses (``_kernel.dissipate``), which the tangent does not carry."""
+    return m.has_joints != 0
 
 
 def make_tangent_work(m, nd):
@@ -548,6 +552,74 @@ def _step_tangent(t, h, y, acc, y_eval, dY, dacc, dY_eval, m, dm, work, tw):
         _kick_row(i, half, y, acc, dY, dacc)
     for rg in range(R):
         _kick_row(o_ring + 2 * rg + 1, half, y, acc, dY, dacc)
+    if m.has_ring_friction != 0:
+        _ring_friction_tangent(y, dY, h, m, dm, work, tw, o_F, o_ring)
+        dissipate(t + h, y, h, m, work, True)
+
+
+@njit(cache=True, inline="always")
+def _element_geometry_tangent(e, y, dY, m, dm, work, tw, o_F, k):
+    """Element e's unit vector, tension and their tangents along direction k (a ring's capstan).
+
+    Returns (ux, uy, uz, tension, dux, duy, duz, dtension), at the positions of the last right-hand side.
+    """
+    s, side = m.el_seg[e], m.el_side[e]
+    na, nb_ = m.el_na[e], m.el_nb[e]
+    nx, dnx = work.nx, tw.dnx
+    Le, invL = work.rest[s, side], work.inv_rest[s, side]
+    dx, dyy, dz = nx[nb_, 0] - nx[na, 0], nx[nb_, 1] - nx[na, 1], nx[nb_, 2] - nx[na, 2]
+    length = math.sqrt(dx * dx + dyy * dyy + dz * dz)
+    ux, uy, uz = dx / length, dyy / length, dz / length
+    d0, d1, d2 = dnx[nb_, 0, k] - dnx[na, 0, k], dnx[nb_, 1, k] - dnx[na, 1, k], dnx[nb_, 2, k] - dnx[na, 2, k]
+    dlen = ux * d0 + uy * d1 + uz * d2
+    tension, dtension = 0.0, 0.0
+    if length > Le:
+        tension = m.seg_ks[s] * invL * (length - Le) + y[o_F + e]
+        if tension > 0.0:
+            drest = tw.drest[s, side, k]
+            dtension = (dm.seg_ks[s, k] * invL * (length - Le) + m.seg_ks[s] * tw.dinv_rest[s, side, k] * (length - Le)
+                        + m.seg_ks[s] * invL * (dlen - drest) + dY[o_F + e, k])
+        else:
+            tension = 0.0
+    return (ux, uy, uz, tension, (d0 - ux * dlen) / length, (d1 - uy * dlen) / length, (d2 - uz * dlen) / length,
+            dtension)
+
+
+@njit(cache=True, inline="always")
+def _ring_friction_tangent(y, dY, h, m, dm, work, tw, o_F, o_ring):
+    """The tangent of ``_kernel.dissipate``'s ring friction, before it acts (it reads the slide rates it changes).
+
+    A slipping ring's rate loses sign(v) limit h / mass, limit = min(T_A, T_B)
+    (e^(mu beta) - 1) with beta the angle the rope turns through; a stuck
+    ring's rate is zero whatever the parameters, so is its tangent.
+    """
+    Lseg = work.Lseg
+    for rg in range(m.ring_seg.shape[0]):
+        mu = m.ring_mu[rg]
+        if mu == 0.0:
+            continue
+        s = m.ring_seg[rg]
+        eA, eB = m.ring_eA[rg], m.ring_eB[rg]
+        i = o_ring + 2 * rg + 1
+        vs = y[i]
+        mass = m.seg_rho[s] * Lseg[s] / 3.0 + m.ring_added_mass[rg]
+        for k in range(dY.shape[1]):
+            ax, ay, az, TA, dax, day, daz, dTA = _element_geometry_tangent(eA, y, dY, m, dm, work, tw, o_F, k)
+            bx, by, bz, TB, dbx, dby, dbz, dTB = _element_geometry_tangent(eB, y, dY, m, dm, work, tw, o_F, k)
+            cosb = ax * bx + ay * by + az * bz
+            beta = math.acos(min(1.0, max(-1.0, cosb)))
+            grow = math.exp(mu * beta)
+            low, dlow = (TA, dTA) if TA <= TB else (TB, dTB)
+            limit = low * (grow - 1.0)
+            if abs(vs) * mass <= limit * h:
+                dY[i, k] = 0.0  # stuck
+                continue
+            dcos = dax * bx + day * by + daz * bz + ax * dbx + ay * dby + az * dbz
+            dbeta = -dcos / math.sqrt(1.0 - cosb * cosb) if abs(cosb) < 1.0 else 0.0
+            dlimit = dlow * (grow - 1.0) + low * grow * (dm.ring_mu[rg, k] * beta + mu * dbeta)
+            dmass = (dm.seg_rho[s, k] * Lseg[s] + m.seg_rho[s] * tw.dLseg[s, k]) / 3.0 + dm.ring_added_mass[rg, k]
+            sign = 1.0 if vs > 0.0 else (-1.0 if vs < 0.0 else 0.0)
+            dY[i, k] -= sign * h * (dlimit / mass - limit * dmass / (mass * mass))
 
 
 @njit(cache=True, inline="always")

@@ -20,7 +20,7 @@ from dragline.simulate import (TangentUnavailable, apply_parameters, default_man
                                simulate, simulate_sensitivities)
 from dragline.simulate import _kernel
 from dragline.simulate._model import kernel_model
-from dragline.simulate._tangent import TANGENT_FIELDS, TangentModel, make_tangent_work, rhs_tangent_at
+from dragline.simulate._tangent import TANGENT_FIELDS, TangentModel, integrate_tangent, make_tangent_work, rhs_tangent_at
 
 RATE_HZ = 100.0
 TOLERANCE = 1e-4  # column-norm relative error the issue asks of every column
@@ -211,6 +211,40 @@ def test_an_output_of_the_states_and_the_rig_is_differentiated_with_them():
 
     fd = _converged_difference(output, np.zeros(1), tol[0], 0)
     assert _rel(sens.of(bottom_z)[0], fd) < TOLERANCE
+
+
+def test_ring_friction_while_the_rope_slips_matches_central_differences():
+    """The capstan impulse of a slipping ring, along its friction coefficient, its sheave's inertia, the rope's
+    stiffness and the state: over five record intervals of the dig in which both of the dragline's rings slip."""
+    rig = load_rig("dragline")
+    result = simulate(rig, duration=3.0, rate_hz=RATE_HZ, physics=(make_mechanism("pulley_friction", mu=0.02),))
+    model = result.model
+    rates = np.abs(result.states[:, model.o_ring + 1 + 2 * np.arange(model.n_rings)]).min(axis=1)
+    start = next(i for i in range(len(rates) - 6) if np.all(rates[i:i + 6] > 2e-3))
+    y0, t0, schedule = result.states[start], float(result.time[start]), result.substeps[start:start + 5].copy()
+    rng = np.random.default_rng(8)
+    directions = {"ring_mu": np.full(model.n_rings, 0.01), "ring_added_mass": np.full(model.n_rings, 1e-3),
+                  "seg_ks": 0.1 * np.asarray(model.arrays["seg_ks"], float),
+                  "state": rng.normal(size=model.n_state) * (np.abs(y0) * 1e-5 + 1e-7)}
+    for name, d in directions.items():
+        fields = {f: np.zeros(np.shape(model.arrays[f]) + (1,)) for f in TANGENT_FIELDS}
+        if name != "state":
+            fields[name] = np.ascontiguousarray(d[..., None])
+        dY0 = np.ascontiguousarray((d if name == "state" else np.zeros(model.n_state))[:, None])
+
+        def run(x):
+            arrays = dict(model.arrays)
+            if name != "state":
+                arrays[name] = np.asarray(model.arrays[name], float) + x[0] * d
+            m = kernel_model(arrays)
+            y = y0 + x[0] * dY0[:, 0]
+            return integrate_tangent(y, dY0, t0, 1.0 / RATE_HZ, schedule, m, TangentModel(**fields),
+                                     _kernel.make_work(m), make_tangent_work(m, 1))[0]
+
+        m = model.kernel_tuple()
+        _, tangents = integrate_tangent(y0, dY0, t0, 1.0 / RATE_HZ, schedule, m, TangentModel(**fields),
+                                        _kernel.make_work(m), make_tangent_work(m, 1))
+        assert _rel(tangents[..., 0], _converged_difference(run, np.zeros(1), 0.05, 0)) < TOLERANCE, name
 
 
 def test_dissipative_impulses_are_refused_not_differentiated_wrongly():
