@@ -17,6 +17,8 @@ measure what a user's code would get.
   blind sessions diagnosed and scored against the physics hidden in them,
   on the dragline or (``--realism --rig NAME``, ``_machine_cases``) another
   built-in machine
+- ``bench_sensitivities`` (``sensitivities_summary_lines``): the states'
+  Jacobian from the scheme's tangent against finite differences, timed
 - ``bench_real`` (``real_command``): real slung-load flights, each
   predicted by a diagnosis fitted on all the others together
 
@@ -40,6 +42,8 @@ _EXPORTS = {
     "bench_discovery": ("_discovery", "bench_discovery"),
     "discovery_command": ("_discovery", "bench_command"),
     "discovery_summary_lines": ("_discovery", "summary_lines"),
+    "bench_sensitivities": ("_sensitivities", "bench_sensitivities"),
+    "sensitivities_summary_lines": ("_sensitivities", "summary_lines"),
     "bench_real": ("_real", "bench_real"),
     "real_command": ("_real", "bench_command"),
 }

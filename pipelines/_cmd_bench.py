@@ -23,7 +23,8 @@ def add_parser(sub):
                    help="discovery: truth rigs drawn within the rig's tolerances, simulated finer than the "
                         "diagnosis, with out-of-menu physics among the cases")
     p.add_argument("--rig", metavar="NAME", help="discovery --realism: another built-in machine's cases "
-                                                  "(pendulum, slung_load, gantry_crane; default the dragline)")
+                                                  "(pendulum, slung_load, gantry_crane; default the dragline); "
+                                                  "sensitivities: the machine whose parameters are differentiated")
     p.add_argument("--workers", type=int, default=2, help="discovery, diagnosis: parallel processes")
     p.add_argument("--session", metavar="DIR",
                    help="diagnosis: the session to diagnose (default: the sample session's recipe, synthesised first)")
@@ -81,6 +82,13 @@ def _discovery(args):
     return discovery_command(args)
 
 
+def _sensitivities(args):
+    from dragline.benchmarks import bench_sensitivities, sensitivities_summary_lines
+
+    report = bench_sensitivities(rig_name=args.rig or "dragline", repeats=args.repeats)
+    return report, sensitivities_summary_lines(report)
+
+
 def _real(args):
     from dragline.benchmarks import real_command
 
@@ -88,7 +96,7 @@ def _real(args):
 
 
 BENCHES = {"simulate": _simulate, "capture": _capture, "reconstruct": _reconstruct, "triangulation": _triangulation,
-           "diagnosis": _diagnosis, "discovery": _discovery, "real": _real}
+           "diagnosis": _diagnosis, "discovery": _discovery, "real": _real, "sensitivities": _sensitivities}
 
 
 def run(args):
