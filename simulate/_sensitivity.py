@@ -23,7 +23,7 @@ from . import _kernel
 from ._simulate import _held_pose, simulate
 from ._model import assemble
 from ._statics import _accel_index, _unknown_index
-from ._tangent import TANGENT_FIELDS, TangentModel, has_joint_impulses, integrate_tangent, make_tangent_work, rhs_tangent_at
+from ._tangent import TANGENT_FIELDS, TangentModel, integrate_tangent, make_tangent_work, rhs_tangent_at
 
 __all__ = ["Sensitivities", "TangentUnavailable", "simulate_sensitivities", "tangent_model", "statics_tangent"]
 
@@ -36,7 +36,7 @@ NEUTRAL_RCOND = 1e-10
 
 
 class TangentUnavailable(ValueError):
-    """The model has physics the tangent does not carry (``_tangent``): use finite differences."""
+    """The run starts in a way the tangent does not carry (``_tangent``): use finite differences."""
 
 
 def tangent_model(model, plus, minus, steps):
@@ -138,7 +138,7 @@ def simulate_sensitivities(build, coords, steps, *, discretization="baseline", d
     Raises
     ------
     TangentUnavailable
-        The model has the joints' impulses, or a release that sets bodies moving.
+        A release that sets bodies moving.
     """
     coords = np.asarray(coords, float)
     h = ASSEMBLY_STEP * np.asarray(steps, float)
@@ -149,9 +149,6 @@ def simulate_sensitivities(build, coords, steps, *, discretization="baseline", d
                       statics_guess=statics_guess)
     model = result.model
     m = model.kernel_tuple()
-    if has_joint_impulses(m):
-        raise TangentUnavailable("the tangent does not carry the joints' impulses (bending damping, chain-link "
-                                 "friction)")
     plus, minus, dheld = [], [], np.zeros((model.n_state, len(coords)))
     held_names = tuple(rig.release or ())
     for j in range(len(coords)):

@@ -15,12 +15,9 @@ damping, lengths, densities, drag areas, a sheave's added mass and bearing
 damping, the reel and fixed-point tables), with the initial state's own
 perturbation; ``_sensitivity`` maps a rig's parameters onto both.
 
-Of the dissipative impulses (``_kernel.dissipate``) ring friction is
-carried (``_ring_friction_tangent``: a slipping ring's impulse
-differentiated, a stuck one's derivative zero, as the stuck state is); the
-joints' (bending damping, chain-link friction: a Gauss-Seidel sweep of
-implicit impulses) are not, and a model that has them is refused
-(``has_joint_impulses``).
+The dissipative impulses after each step (``_kernel.dissipate``: the
+joints' bending damping and chain-link friction, ring friction) are
+differentiated in ``_tangent_impulses``.
 """
 
 from __future__ import annotations
@@ -31,24 +28,25 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from ._kernel import (NO_REFCOUNT, REBASE_ROLL, _body_matrix, _body_pose, _offsets, dissipate, rebase, record_state, rhs,
+from ._kernel import (NO_REFCOUNT, REBASE_ROLL, _body_matrix, _body_pose, _offsets, rebase, record_state, rhs,
                       rhs_maxwell_update)
+from ._tangent_impulses import impulses_tangent
 from ._verlet import _euler_angle_rates, _euler_angle_rates_trig, _maxwell_factors, element_stretch
 
-__all__ = ["TANGENT_FIELDS", "TangentModel", "make_tangent_work", "integrate_tangent", "rhs_tangent_at",
-           "has_joint_impulses"]
+__all__ = ["TANGENT_FIELDS", "TangentModel", "make_tangent_work", "integrate_tangent", "rhs_tangent_at"]
 
 # The kernel model's fields a direction perturbs; each tangent array has the field's shape plus (nd,).
 TANGENT_FIELDS = (
-    "body_mass", "body_I", "body_Iinv", "bnode_arm",
+    "body_mass", "body_I", "body_Iinv", "bnode_arm", "el_ra", "el_rb",
     "seg_ks", "seg_kv", "seg_relax", "seg_len0", "seg_reel_off", "seg_rho", "seg_cda",
     "ring_added_mass", "ring_visc", "ring_mu", "body_cda", "reel_len", "point_pos",
+    "seg_bend_c", "seg_link_mu", "seg_link_r",
 )
 TangentModel = namedtuple("TangentModel", TANGENT_FIELDS)
 
 TangentWork = namedtuple("TangentWork", [
     "dT", "dref", "dtrig",  # (nb, 3, 3, nd), (nb, 3, 3, nd), (nb, 4, nd)
-    "dLseg", "dreel", "dfpos",  # (S, nd), (reels, nd), (F, 3, nd)
+    "dLseg", "dreel", "dfpos", "dfvel",  # (S, nd), (reels, nd), (F, 3, nd) x 2
     "dnx", "dnarm", "dnf",  # (nodes, 3, nd), (body ends, 3, nd), (nodes, 3, nd)
     "dfb", "dmb", "dsumA", "dsumB",  # (nb, 3, nd) x 2, (R, nd) x 2
     "drest", "dinv_rest",  # (S, sides, nd)
@@ -58,12 +56,10 @@ TangentWork = namedtuple("TangentWork", [
     "dd", "dlen", "dtens",  # (3, nd), (nd,), (nd,) one element's scratch
     "dR",  # (3, 3, nd) one body's rotation tangent in its chart
     "seg_phi", "seg_dphi", "step",  # (S,) phi(lambda h) and its derivative per segment, for step h (1,)
+    # the joints' sweep: each element's unit vector, 1 / length, tension, lever arms, inverse masses (``work.el_*``)
+    "del_u", "del_inv_len", "del_T", "del_arm", "del_inv_mass",  # (E, 3 | - | - | 6 | 4, nd)
+    "dv",  # (2, 3, nd) an element's two ends' velocity tangents
 ])
-
-
-def has_joint_impulses(m):
-    """True if the model has the joints' impulses (``_kernel.dissipate``), which the tangent does not carry."""
-    return m.has_joints != 0
 
 
 def make_tangent_work(m, nd):
@@ -76,13 +72,15 @@ def make_tangent_work(m, nd):
     z = np.zeros
     return TangentWork(
         dT=z((max(nb, 1), 3, 3, nd)), dref=z((max(nb, 1), 3, 3, nd)), dtrig=z((max(nb, 1), 4, nd)),
-        dLseg=z((S, nd)), dreel=z((m.reel_len.shape[1], nd)), dfpos=z((F, 3, nd)),
+        dLseg=z((S, nd)), dreel=z((m.reel_len.shape[1], nd)), dfpos=z((F, 3, nd)), dfvel=z((F, 3, nd)),
         dnx=z((nodes, 3, nd)), dnarm=z((NB, 3, nd)), dnf=z((nodes, 3, nd)),
         dfb=z((max(nb, 1), 3, nd)), dmb=z((max(nb, 1), 3, nd)), dsumA=z((max(R, 1), nd)), dsumB=z((max(R, 1), nd)),
         drest=z((S, sides, nd)), dinv_rest=z((S, sides, nd)), deps=z((E, nd)),
         dinv_mass_seg=z((S, nd)), dcda_seg=z((S, nd)), F_then=z(E), eps_then=z(E),
         dd=z((3, nd)), dlen=z(nd), dtens=z(nd), dR=z((3, 3, nd)),
         seg_phi=z(S), seg_dphi=z(S), step=np.full(1, -1.0),
+        del_u=z((E, 3, nd)), del_inv_len=z((E, nd)), del_T=z((E, nd)), del_arm=z((E, 6, nd)),
+        del_inv_mass=z((E, 4, nd)), dv=z((2, 3, nd)),
     )
 
 
@@ -107,11 +105,14 @@ def _tables_tangent(t, m, dm, tw):
     for j in range(dm.reel_len.shape[1]):
         for d in range(nd):
             tw.dreel[j, d] = dm.reel_len[k, j, d] + w * (dm.reel_len[k1, j, d] - dm.reel_len[k, j, d])
+    n = m.reel_t.shape[0]
+    inside = n > 1 and m.reel_t[0] < t < m.reel_t[n - 1]
     for i in range(dm.point_pos.shape[1]):
         for c in range(3):
             for d in range(nd):
                 a = dm.point_pos[k, i, c, d]
                 tw.dfpos[i, c, d] = a + w * (dm.point_pos[k1, i, c, d] - a)
+                tw.dfvel[i, c, d] = (dm.point_pos[k1, i, c, d] - a) / (m.reel_t[k1] - m.reel_t[k]) if inside else 0.0
 
 
 @njit(cache=True, inline="always")
@@ -552,74 +553,8 @@ def _step_tangent(t, h, y, acc, y_eval, dY, dacc, dY_eval, m, dm, work, tw):
         _kick_row(i, half, y, acc, dY, dacc)
     for rg in range(R):
         _kick_row(o_ring + 2 * rg + 1, half, y, acc, dY, dacc)
-    if m.has_ring_friction != 0:
-        _ring_friction_tangent(y, dY, h, m, dm, work, tw, o_F, o_ring)
-        dissipate(t + h, y, h, m, work, True)
-
-
-@njit(cache=True, inline="always")
-def _element_geometry_tangent(e, y, dY, m, dm, work, tw, o_F, k):
-    """Element e's unit vector, tension and their tangents along direction k (a ring's capstan).
-
-    Returns (ux, uy, uz, tension, dux, duy, duz, dtension), at the positions of the last right-hand side.
-    """
-    s, side = m.el_seg[e], m.el_side[e]
-    na, nb_ = m.el_na[e], m.el_nb[e]
-    nx, dnx = work.nx, tw.dnx
-    Le, invL = work.rest[s, side], work.inv_rest[s, side]
-    dx, dyy, dz = nx[nb_, 0] - nx[na, 0], nx[nb_, 1] - nx[na, 1], nx[nb_, 2] - nx[na, 2]
-    length = math.sqrt(dx * dx + dyy * dyy + dz * dz)
-    ux, uy, uz = dx / length, dyy / length, dz / length
-    d0, d1, d2 = dnx[nb_, 0, k] - dnx[na, 0, k], dnx[nb_, 1, k] - dnx[na, 1, k], dnx[nb_, 2, k] - dnx[na, 2, k]
-    dlen = ux * d0 + uy * d1 + uz * d2
-    tension, dtension = 0.0, 0.0
-    if length > Le:
-        tension = m.seg_ks[s] * invL * (length - Le) + y[o_F + e]
-        if tension > 0.0:
-            drest = tw.drest[s, side, k]
-            dtension = (dm.seg_ks[s, k] * invL * (length - Le) + m.seg_ks[s] * tw.dinv_rest[s, side, k] * (length - Le)
-                        + m.seg_ks[s] * invL * (dlen - drest) + dY[o_F + e, k])
-        else:
-            tension = 0.0
-    return (ux, uy, uz, tension, (d0 - ux * dlen) / length, (d1 - uy * dlen) / length, (d2 - uz * dlen) / length,
-            dtension)
-
-
-@njit(cache=True, inline="always")
-def _ring_friction_tangent(y, dY, h, m, dm, work, tw, o_F, o_ring):
-    """The tangent of ``_kernel.dissipate``'s ring friction, before it acts (it reads the slide rates it changes).
-
-    A slipping ring's rate loses sign(v) limit h / mass, limit = min(T_A, T_B)
-    (e^(mu beta) - 1) with beta the angle the rope turns through; a stuck
-    ring's rate is zero whatever the parameters, so is its tangent.
-    """
-    Lseg = work.Lseg
-    for rg in range(m.ring_seg.shape[0]):
-        mu = m.ring_mu[rg]
-        if mu == 0.0:
-            continue
-        s = m.ring_seg[rg]
-        eA, eB = m.ring_eA[rg], m.ring_eB[rg]
-        i = o_ring + 2 * rg + 1
-        vs = y[i]
-        mass = m.seg_rho[s] * Lseg[s] / 3.0 + m.ring_added_mass[rg]
-        for k in range(dY.shape[1]):
-            ax, ay, az, TA, dax, day, daz, dTA = _element_geometry_tangent(eA, y, dY, m, dm, work, tw, o_F, k)
-            bx, by, bz, TB, dbx, dby, dbz, dTB = _element_geometry_tangent(eB, y, dY, m, dm, work, tw, o_F, k)
-            cosb = ax * bx + ay * by + az * bz
-            beta = math.acos(min(1.0, max(-1.0, cosb)))
-            grow = math.exp(mu * beta)
-            low, dlow = (TA, dTA) if TA <= TB else (TB, dTB)
-            limit = low * (grow - 1.0)
-            if abs(vs) * mass <= limit * h:
-                dY[i, k] = 0.0  # stuck
-                continue
-            dcos = dax * bx + day * by + daz * bz + ax * dbx + ay * dby + az * dbz
-            dbeta = -dcos / math.sqrt(1.0 - cosb * cosb) if abs(cosb) < 1.0 else 0.0
-            dlimit = dlow * (grow - 1.0) + low * grow * (dm.ring_mu[rg, k] * beta + mu * dbeta)
-            dmass = (dm.seg_rho[s, k] * Lseg[s] + m.seg_rho[s] * tw.dLseg[s, k]) / 3.0 + dm.ring_added_mass[rg, k]
-            sign = 1.0 if vs > 0.0 else (-1.0 if vs < 0.0 else 0.0)
-            dY[i, k] -= sign * h * (dlimit / mass - limit * dmass / (mass * mass))
+    if m.has_joints != 0 or m.has_ring_friction != 0:
+        impulses_tangent(y, dY, h, m, dm, work, tw)
 
 
 @njit(cache=True, inline="always")

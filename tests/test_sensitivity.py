@@ -11,6 +11,7 @@ enough (no rope turns slack) that the difference quotient converges.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -213,19 +214,12 @@ def test_an_output_of_the_states_and_the_rig_is_differentiated_with_them():
     assert _rel(sens.of(bottom_z)[0], fd) < TOLERANCE
 
 
-def test_ring_friction_while_the_rope_slips_matches_central_differences():
-    """The capstan impulse of a slipping ring, along its friction coefficient, its sheave's inertia, the rope's
-    stiffness and the state: over five record intervals of the dig in which both of the dragline's rings slip."""
-    rig = load_rig("dragline")
-    result = simulate(rig, duration=3.0, rate_hz=RATE_HZ, physics=(make_mechanism("pulley_friction", mu=0.02),))
+def _check_window(result, start, records, directions):
+    """The tangent of ``records`` record intervals of ``result`` from record ``start`` against converged central
+    differences, along each of ``directions`` (a kernel field's perturbation, or "state")."""
     model = result.model
-    rates = np.abs(result.states[:, model.o_ring + 1 + 2 * np.arange(model.n_rings)]).min(axis=1)
-    start = next(i for i in range(len(rates) - 6) if np.all(rates[i:i + 6] > 2e-3))
-    y0, t0, schedule = result.states[start], float(result.time[start]), result.substeps[start:start + 5].copy()
-    rng = np.random.default_rng(8)
-    directions = {"ring_mu": np.full(model.n_rings, 0.01), "ring_added_mass": np.full(model.n_rings, 1e-3),
-                  "seg_ks": 0.1 * np.asarray(model.arrays["seg_ks"], float),
-                  "state": rng.normal(size=model.n_state) * (np.abs(y0) * 1e-5 + 1e-7)}
+    y0, t0 = result.states[start], float(result.time[start])
+    schedule = result.substeps[start:start + records].copy()
     for name, d in directions.items():
         fields = {f: np.zeros(np.shape(model.arrays[f]) + (1,)) for f in TANGENT_FIELDS}
         if name != "state":
@@ -237,8 +231,7 @@ def test_ring_friction_while_the_rope_slips_matches_central_differences():
             if name != "state":
                 arrays[name] = np.asarray(model.arrays[name], float) + x[0] * d
             m = kernel_model(arrays)
-            y = y0 + x[0] * dY0[:, 0]
-            return integrate_tangent(y, dY0, t0, 1.0 / RATE_HZ, schedule, m, TangentModel(**fields),
+            return integrate_tangent(y0 + x[0] * dY0[:, 0], dY0, t0, 1.0 / RATE_HZ, schedule, m, TangentModel(**fields),
                                      _kernel.make_work(m), make_tangent_work(m, 1))[0]
 
         m = model.kernel_tuple()
@@ -247,12 +240,47 @@ def test_ring_friction_while_the_rope_slips_matches_central_differences():
         assert _rel(tangents[..., 0], _converged_difference(run, np.zeros(1), 0.05, 0)) < TOLERANCE, name
 
 
-def test_dissipative_impulses_are_refused_not_differentiated_wrongly():
+def _state_direction(result, start, seed):
+    y = result.states[start]
+    return np.random.default_rng(seed).normal(size=y.shape) * (np.abs(y) * 1e-5 + 1e-7)
+
+
+def test_ring_friction_while_the_rope_slips_matches_central_differences():
+    """The capstan impulse of a slipping ring, along its friction coefficient, its sheave's inertia, the rope's
+    stiffness and the state: over five record intervals of the dig in which both of the dragline's rings slip."""
+    result = simulate(load_rig("dragline"), duration=3.0, rate_hz=RATE_HZ,
+                      physics=(make_mechanism("pulley_friction", mu=0.02),))
+    model = result.model
+    rates = np.abs(result.states[:, model.o_ring + 1 + 2 * np.arange(model.n_rings)]).min(axis=1)
+    start = next(i for i in range(len(rates) - 6) if np.all(rates[i:i + 6] > 2e-3))
+    _check_window(result, start, 5, {"ring_mu": np.full(model.n_rings, 0.01),
+                                     "ring_added_mass": np.full(model.n_rings, 1e-3),
+                                     "seg_ks": 0.1 * np.asarray(model.arrays["seg_ks"], float),
+                                     "state": _state_direction(result, start, 8)})
+
+
+@pytest.mark.parametrize("mechanism, value, fields", [
+    ("rope_bending_damping", {"c": 0.05}, ("seg_bend_c",)),
+    ("chain_link_friction", {"mu": 0.2}, ("seg_link_mu", "seg_link_r")),
+])
+def test_the_joints_impulses_match_central_differences(mechanism, value, fields):
+    """The joints' sweep (bending damping, chain-link friction), along its coefficients, the bodies' masses and the
+    state, over five record intervals half a second into the dig."""
+    result = simulate(load_rig("dragline"), duration=1.0, rate_hz=RATE_HZ, physics=(make_mechanism(mechanism, **value),))
+    arrays = result.model.arrays
+    # the particles' masses move each joint's inverse inertia w, and with it the implicit factor c h / (1 + c h w)
+    directions = {f: 0.1 * np.asarray(arrays[f], float) for f in (*fields, "body_mass", "seg_rho")}
+    _check_window(result, 50, 5, {**directions, "state": _state_direction(result, 50, 9)})
+
+
+def test_a_moving_release_is_refused_not_differentiated_wrongly():
     rig = load_rig("pendulum")
+    release = {name: {**pose, "velocity": np.array([0.1, 0.0, 0.0])} for name, pose in rig.release.items()}
+    moving = dataclasses.replace(rig, release=release)
     maneuver = default_maneuver(rig)
 
     def build(x):
-        return rig, maneuver, (make_mechanism("rope_bending_damping", c=0.05 * math.exp(x[0])),)
+        return moving, maneuver, (make_mechanism("aero_drag", cd=math.exp(x[0])),)
 
     with pytest.raises(TangentUnavailable):
         simulate_sensitivities(build, np.zeros(1), np.ones(1), duration=0.1, rate_hz=RATE_HZ)
