@@ -49,7 +49,7 @@ def impulses_tangent(y, dY, h, m, dm, work, tw):
         _ring_friction(y, dY, h, m, dm, work, tw, o_F, o_ring)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _element_geometry_tangent(e, y, dY, m, dm, work, tw, o_F, k):
     """Element e's unit vector, tension and their tangents along direction k, and its length's tangent.
 
@@ -133,7 +133,7 @@ def _smallest_inertia(body_I, b):
     return 0 if body_I[b, 0, 0] <= body_I[b, 2, 2] else 2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _end_velocity_tangent(kind, idx, arms, darms, e, y, dY, m, work, tw, o_vel, k):
     """The tangent (3,) of ``_kernel._node``'s velocity of an element end, along direction k."""
     if kind == KIND_PARTICLE:
@@ -160,7 +160,7 @@ def _end_velocity_tangent(kind, idx, arms, darms, e, y, dY, m, work, tw, o_vel, 
     return tw.dfvel[idx, 0, k], tw.dfvel[idx, 1, k], tw.dfvel[idx, 2, k]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _spin_tangent(e, y, dY, m, dm, work, tw, o_part, o_vel, k):
     """The tangent of element e's angular velocity (u x (v_b - v_a)) / L, along direction k."""
     _, _, _, vxa, vya, vza, _, _, _ = _node(m.el_ka[e], m.el_ia[e], m.el_ra, e, y, work.T, work.fpos, work.fvel,
@@ -181,7 +181,7 @@ def _spin_tangent(e, y, dY, m, dm, work, tw, o_part, o_vel, k):
     return dcx * i + cx * di, dcy * i + cy * di, dcz * i + cz * di
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _turn_tangent(b, hx, hy, hz, dhx, dhy, dhz, m, dm, work, tw, dY, k):
     """The tangent of ``_kernel._turn``: body b's rates += Iinv T' H for an angular impulse H (inertial axes)."""
     T, dT, Iinv, dIinv = work.T, tw.dT, m.body_Iinv, dm.body_Iinv
@@ -197,7 +197,7 @@ def _turn_tangent(b, hx, hy, hz, dhx, dhy, dhz, m, dm, work, tw, dY, k):
                              + Iinv[b, c, 0] * dbx + Iinv[b, c, 1] * dby + Iinv[b, c, 2] * dbz)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _kick_tangent(kind, idx, e, end, jx, jy, jz, djx, djy, djz, m, dm, work, tw, dY, o_vel, k):
     """The tangent of ``_kernel._kick`` of impulse J at element e's end (0: a, 1: b), along direction k."""
     inv, dinv = work.el_inv_mass[e, 2 * end], tw.del_inv_mass[e, 2 * end, k]
@@ -218,7 +218,7 @@ def _kick_tangent(kind, idx, e, end, jx, jy, jz, djx, djy, djz, m, dm, work, tw,
                       d0 * jy + a0 * djy - d1 * jx - a1 * djx, m, dm, work, tw, dY, k)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _kick_pair_tangent(e, hx, hy, hz, dhx, dhy, dhz, sign, m, dm, work, tw, dY, o_vel, k):
     """The tangents of the couple ``sign (H x u) / L`` at element e's end b and its opposite at end a."""
     ux, uy, uz = work.el_u[e, 0], work.el_u[e, 1], work.el_u[e, 2]
@@ -354,7 +354,7 @@ def _joints(y, dY, h, m, dm, work, tw, o_part, o_vel):
         _apply_joint(y, m, work, e1, e2, b, hx, hy, hz, u1x, u1y, u1z, u2x, u2y, u2z, i1, i2, o_vel)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _apply_joint(y, m, work, e1, e2, b, hx, hy, hz, u1x, u1y, u1z, u2x, u2y, u2z, i1, i2, o_vel):
     """The joint's impulses on its elements' ends (``_kernel._joint_impulses``'s last lines)."""
     T, el_inv_mass, el_arm, body_Iinv = work.T, work.el_inv_mass, work.el_arm, m.body_Iinv
