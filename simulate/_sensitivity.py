@@ -2,10 +2,12 @@
 
 Three links, each exact or nearly so:
 1. the kernel arrays' derivatives (``tangent_model``): central differences of
-   the assembly, which is algebra (no simulation), at a step of a
-   millionth of a tolerance, so their error is of the order of that step
-   squared; the arrays a parameter moves linearly (lengths, stiffnesses,
-   masses, lever arms) come out exact to rounding;
+   the assembly, which is algebra (no simulation), over ``ASSEMBLY_STEP``
+   (a ten-thousandth) of each coordinate's scale: the arrays a parameter
+   moves linearly (lengths, stiffnesses, masses, lever arms) come out exact
+   to rounding, the rest to the step squared (a millionth of the scale was
+   tried first: its rounding, 1e-16 of a metre over a 2e-9 m step, was
+   then the error);
 2. the starting pose's (``statics_tangent``): the equilibrium's own
    derivative, -G_q^-1 G_p, with G the static balance, its Jacobians from
    the tangent of the right-hand side;
@@ -27,10 +29,8 @@ from ._tangent import TANGENT_FIELDS, TangentModel, integrate_tangent, make_tang
 
 __all__ = ["Sensitivities", "TangentUnavailable", "simulate_sensitivities", "tangent_model", "statics_tangent"]
 
-# The assembly's difference step, in each direction's own step (``simulate_sensitivities``'s ``steps``).
+# The assembly's difference step, in each direction's own scale (``simulate_sensitivities``'s ``steps``).
 ASSEMBLY_STEP = 1e-4
-
-
 # Singular values of the static balance's Jacobian below this share of its largest are neutral directions.
 NEUTRAL_RCOND = 1e-10
 
@@ -171,6 +171,6 @@ def simulate_sensitivities(build, coords, steps, *, discretization="baseline", d
     t0 = float(result.time[0])
     dY0 = statics_tangent(model, result.states[0], t0, dm, held, dheld)
     out_dt = 1.0 / rate_hz
-    records, tangents = integrate_tangent(result.states[0], dY0, t0, out_dt, result.substeps, m, dm,
-                                          _kernel.make_work(m), make_tangent_work(m, len(coords)))
+    _, tangents = integrate_tangent(result.states[0], dY0, t0, out_dt, result.substeps, m, dm,
+                                    _kernel.make_work(m), make_tangent_work(m, len(coords)))
     return Sensitivities(result, tangents, h, plus, minus)

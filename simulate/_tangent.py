@@ -11,9 +11,9 @@ geometry (unit vector, length, tension) is computed once for all of them.
 
 A direction is a perturbation of the kernel model's parameter arrays
 (``TANGENT_FIELDS``: masses, inertias, lever arms, rope stiffness and
-damping, lengths, densities, drag areas, a sheave's added mass and bearing
-damping, the reel and fixed-point tables), with the initial state's own
-perturbation; ``_sensitivity`` maps a rig's parameters onto both.
+damping, lengths, densities, drag areas, a sheave's added mass, bearing
+damping and friction, the joints' bending damping and link friction, the
+reel and fixed-point tables), with the initial state's own perturbation; ``_sensitivity`` maps a rig's parameters onto both.
 
 The dissipative impulses after each step (``_kernel.dissipate``: the
 joints' bending damping and chain-link friction, ring friction) are
@@ -58,7 +58,6 @@ TangentWork = namedtuple("TangentWork", [
     "seg_phi", "seg_dphi", "step",  # (S,) phi(lambda h) and its derivative per segment, for step h (1,)
     # the joints' sweep: each element's unit vector, 1 / length, tension, lever arms, inverse masses (``work.el_*``)
     "del_u", "del_inv_len", "del_T", "del_arm", "del_inv_mass",  # (E, 3 | - | - | 6 | 4, nd)
-    "dv",  # (2, 3, nd) an element's two ends' velocity tangents
 ])
 
 
@@ -80,7 +79,7 @@ def make_tangent_work(m, nd):
         dd=z((3, nd)), dlen=z(nd), dtens=z(nd), dR=z((3, 3, nd)),
         seg_phi=z(S), seg_dphi=z(S), step=np.full(1, -1.0),
         del_u=z((E, 3, nd)), del_inv_len=z((E, nd)), del_T=z((E, nd)), del_arm=z((E, 6, nd)),
-        del_inv_mass=z((E, 4, nd)), dv=z((2, 3, nd)),
+        del_inv_mass=z((E, 4, nd)),
     )
 
 
