@@ -1,12 +1,13 @@
 """Forward sensitivities (``simulate._tangent``, ``simulate._sensitivity``) against central differences.
 
 The truth is the simulation itself, differenced: the right-hand side's
-tangent against its central difference at a tiny step; the whole run's
-(statics, Verlet on the frozen step schedule, the output map) against
-central differences of ``simulate`` over a tenth and a twentieth of a
-tolerance, Richardson-extrapolated (the two steps' truncation errors,
-proportional to the step squared, cancel), on trials short and smooth
-enough (no rope turns slack) that the difference quotient converges.
+tangent against its central differences, Richardson-extrapolated; the
+whole run's (statics, Verlet on the frozen step schedule, the impulses,
+the output map) against central differences of ``simulate`` (or of the
+scheme over a few record intervals) where they have converged
+(``_converged_difference``), on trials short and smooth enough (no rope
+turns slack, no ring or joint switches between sticking and slipping)
+that they do.
 """
 
 from __future__ import annotations
