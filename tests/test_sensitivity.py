@@ -285,3 +285,20 @@ def test_a_moving_release_is_refused_not_differentiated_wrongly():
 
     with pytest.raises(TangentUnavailable):
         simulate_sensitivities(build, np.zeros(1), np.ones(1), duration=0.1, rate_hz=RATE_HZ)
+
+
+@pytest.mark.parametrize("rig_name, physics", [
+    ("dragline", (("chain_link_friction", {"mu": 0.2}), ("pulley_friction", {"mu": 0.02}))),
+    ("gantry_crane", ()),
+])
+def test_the_runs_that_carry_tangents_are_simulates_runs_to_the_bit(rig_name, physics):
+    """The primal beside the tangent repeats the kernel's arithmetic (impulses included) on the schedule the plain
+    run took: the Jacobian is that of the very trajectory ``simulate`` returns."""
+    result = simulate(load_rig(rig_name), duration=2.0, rate_hz=RATE_HZ,
+                      physics=tuple(make_mechanism(name, **value) for name, value in physics))
+    m = result.model.kernel_tuple()
+    fields = TangentModel(*(np.zeros(np.shape(result.model.arrays[f]) + (1,)) for f in TANGENT_FIELDS))
+    records, _ = integrate_tangent(result.states[0], np.zeros((result.model.n_state, 1)), float(result.time[0]),
+                                   1.0 / RATE_HZ, result.substeps, m, fields, _kernel.make_work(m),
+                                   make_tangent_work(m, 1))
+    assert np.array_equal(records, result.states)
