@@ -18,6 +18,7 @@ Three links, each exact or nearly so:
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -100,10 +101,35 @@ class Sensitivities:
         d states / d coordinate j, per record (absolute Euler angles, as ``result.states``).
     """
 
-    def __init__(self, result, tangents, steps, plus, minus):
+    def __init__(self, result, tangents, steps, plus, minus, scales=None):
         self.result = result
         self.tangents = tangents
         self._steps, self._plus, self._minus = steps, plus, minus
+        self.scales = np.asarray(steps, float) / ASSEMBLY_STEP if scales is None else np.asarray(scales, float)
+
+    def horizon(self):
+        """The time (s) from which the tangent is no guide to a change of one scale in some direction (inf: never).
+
+        That is the first record at which one scale of some coordinate (a
+        tolerance, say) moves a body's mass centre or a rope's particle, by
+        the tangent, further than the machine's size (the diagonal of the box
+        around them at the start): no change of that size can be linear.
+        Where ropes or chains turn slack and taut element by element, the
+        scheme itself can be that sensitive - the derivative is exact, and
+        differences over ever smaller steps grow with it - while any finite
+        change ends within a fraction of a millimetre of the same motion
+        (docs/sensitivities.md, "Where the derivative is no guide"). A fit
+        over such an episode needs differences over its own step, not the
+        tangent.
+        """
+        model = self.result.model
+        rows = np.r_[[12 * b + c for b in range(model.n_bodies) for c in range(3)],
+                     np.arange(model.o_part, model.o_vel)].astype(int)
+        start = self.result.states[0, rows].reshape(-1, 3)
+        size = float(np.linalg.norm(start.max(axis=0) - start.min(axis=0)))
+        moved = np.abs(self.tangents[:, rows, :] * self.scales).max(axis=(1, 2))
+        beyond = np.flatnonzero(moved > size)
+        return float(self.result.time[beyond[0]]) if len(beyond) else math.inf
 
     def of(self, output):
         """d output(result) / d coordinate j for each j: ``output`` maps a ``SimulationResult`` to an array.
@@ -173,4 +199,4 @@ def simulate_sensitivities(build, coords, steps, *, discretization="baseline", d
     out_dt = 1.0 / rate_hz
     _, tangents = integrate_tangent(result.states[0], dY0, t0, out_dt, result.substeps, m, dm,
                                     _kernel.make_work(m), make_tangent_work(m, len(coords)))
-    return Sensitivities(result, tangents, h, plus, minus)
+    return Sensitivities(result, tangents, h, plus, minus, np.asarray(steps, float))

@@ -302,3 +302,58 @@ def test_the_runs_that_carry_tangents_are_simulates_runs_to_the_bit(rig_name, ph
                                    1.0 / RATE_HZ, result.substeps, m, fields, _kernel.make_work(m),
                                    make_tangent_work(m, 1))
     assert np.array_equal(records, result.states)
+
+
+# A point the updating's first trust-region step reached on samples/dig_sample, in tolerances of the dragline's
+# sixteen parameters (the rig file's order): there the drag chains turn slack and taut element by element as the
+# reels stop, about 6.5 s into the dig.
+SLACK_EPISODE = np.array([-0.53, -0.023, -0.038, 0.012, -0.115, -0.543, -0.065, -0.016, 0.013, 1.031, 0.061, 0.0,
+                          0.606, 0.495, 0.647, 0.554])
+
+
+def test_the_horizon_marks_where_the_scheme_stops_being_differentiable_on_a_fits_scale():
+    """Before ``Sensitivities.horizon`` the tangent is the secant of small steps; after it, secants over 1e-4 and
+    1e-6 of a tolerance differ many times over while both runs end within a millimetre of the same motion."""
+    rig = load_rig("dragline")
+    maneuver = default_maneuver(rig)
+    params = list(rig.tolerances)
+    tol = np.array([p.tolerance for p in params])
+
+    def build(x):
+        return (*apply_parameters(rig, maneuver, params, x), ())
+
+    duration = 7.0
+    nominal = simulate_sensitivities(build, np.zeros(len(tol)), tol, duration=duration, rate_hz=RATE_HZ)
+    assert nominal.horizon() == math.inf
+    sens = simulate_sensitivities(build, SLACK_EPISODE * tol, tol, duration=duration, rate_hz=RATE_HZ)
+    horizon = sens.horizon()
+    assert 6.0 < horizon < duration
+    base = sens.result
+    model = base.model
+    positions = np.r_[[12 * b + c for b in range(model.n_bodies) for c in range(3)],
+                      np.arange(model.o_part, model.o_vel)].astype(int)
+
+    def frozen(x):  # the run on the base run's step schedule, so that only the parameter differs
+        start = simulate(*build(x)[:2], duration=2.0 / RATE_HZ, rate_hz=RATE_HZ, statics_guess=base.states[0])
+        m = start.model.kernel_tuple()
+        dm = TangentModel(*(np.zeros(np.shape(start.model.arrays[f]) + (1,)) for f in TANGENT_FIELDS))
+        records, _ = integrate_tangent(start.states[0], np.zeros((model.n_state, 1)), float(start.time[0]),
+                                       1.0 / RATE_HZ, base.substeps, m, dm, _kernel.make_work(m), make_tangent_work(m, 1))
+        return records
+
+    j = 0  # the bucket's mass
+    before = base.time < horizon - 0.2
+    after = base.time > horizon + 0.1
+    secants, spreads = [], []
+    for step in (1e-4, 1e-6):
+        up, down = SLACK_EPISODE * tol, SLACK_EPISODE * tol
+        up[j] += step * tol[j]
+        down[j] -= step * tol[j]
+        a, b = frozen(up), frozen(down)
+        secants.append((a - b) / (2 * step * tol[j]))
+        spreads.append(float(np.abs(a - b)[after][:, positions].max()))
+        if step == 1e-4:  # the smaller step's rounding, as 1 / step, is 1e-4 of the column before the episode
+            assert _rel(secants[-1][before], sens.tangents[before, :, j]) < 1e-5
+    late = [float(np.linalg.norm(s[after])) for s in secants]
+    assert late[1] > 10.0 * late[0]  # a hundredth of the step, tens of times the quotient: no derivative there
+    assert max(spreads) < 1e-3
