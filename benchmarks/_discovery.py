@@ -256,9 +256,16 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_
     if name is not None and name in hyp:
         h = hyp[name]
         fitted = h["parameters"][h["main_parameter"]]
-        interval = h["uncertainty"].get("interval_68")
+        u = h["uncertainty"]
+
+        def covers(key):
+            interval = u.get(key)
+            return bool(interval and interval[0] <= value <= interval[1])
+
         out.update(fitted=fitted, relative_error=fitted / value - 1.0 if value else None,
-                   interval_68=interval, covered=bool(interval and interval[0] <= value <= interval[1]),
+                   interval_68=u.get("interval_68"), covered=covers("interval_68"), covered_95=covers("interval_95"),
+                   covered_fixed_rig=covers("interval_68_fixed_rig"),
+                   correlations=u.get("correlations"),
                    truth_rank=[x["name"] for x in doc["hypotheses"]].index(name) + 1,
                    truth_score=h["score"])
     if doc["hypotheses"]:
@@ -420,6 +427,9 @@ def _summarise(results, wall, workers):
             "median_abs_relative_error": float(np.median(rel)) if rel else None,
             "max_abs_relative_error": float(max(rel)) if rel else None,
             "coverage_68": float(np.mean([r["covered"] for r in good])) if good else None,
+            "coverage_95": float(np.mean([r.get("covered_95", False) for r in good])) if good else None,
+            # the interval as stated before the rig's parameters were freed in it (``stated_uncertainty``)
+            "coverage_68_fixed_rig": float(np.mean([r.get("covered_fixed_rig", False) for r in good])) if good else None,
         }
         found = None
         for value in sorted({r["value"] for r in mine}, reverse=True):
@@ -452,12 +462,36 @@ def _summarise(results, wall, workers):
         # mechanism's smallest reliably found magnitude.
         "median_abs_relative_error_reliable": float(np.median(reliable)) if reliable else None,
         "smallest_found": smallest,
+        "coverage": _coverage(results),
         "timing": {"diagnosis_median_s": float(np.median(secs)) if secs else None,
                    "diagnosis_max_s": float(max(secs)) if secs else None,
                    "wall_s": wall, "workers": workers,
                    "note": "diagnosis_seconds includes calibration and reconstruction of the session; "
                            "cases ran concurrently, so each shared the machine"},
     }
+
+
+def wilson_interval(k, n, confidence=0.90):
+    """Wilson's score interval for a proportion k / n (two-sided, ``confidence``)."""
+    from scipy.stats import norm
+
+    if n == 0:
+        return None
+    z = float(norm.ppf(0.5 + confidence / 2.0))
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return [centre - half, centre + half]
+
+
+def _coverage(results):
+    """How often the stated intervals held the truth, over the correctly named cases, with 90 % Wilson intervals."""
+    good = [r for r in results if r.get("relative_error") is not None and r["verdict"] == r["truth"]]
+    out = {"n_named": len(good)}
+    for key, label in (("covered", "68"), ("covered_95", "95"), ("covered_fixed_rig", "68_fixed_rig")):
+        k = sum(bool(r.get(key)) for r in good)
+        out[label] = {"covered": k, "rate": k / len(good) if good else None, "wilson_90": wilson_interval(k, len(good))}
+    return out
 
 
 def summary_lines(report):
@@ -492,6 +526,11 @@ def summary_lines(report):
                  f"{_fmt(report['second_mechanism_false_rate'])} of named cases")
     lines.append("median |relative error| of correctly named cases at or above the smallest magnitude "
                  f"found reliably: {_fmt(report['median_abs_relative_error_reliable'])}")
+    cov = report.get("coverage")
+    if cov and cov["n_named"]:
+        lines.append("intervals holding the truth over the " + str(cov["n_named"]) + " correctly named: " + ", ".join(
+            f"{label} {cov[label]['covered']} (90 % Wilson {_fmt(cov[label]['wilson_90'][0])}-"
+            f"{_fmt(cov[label]['wilson_90'][1])})" for label in ("68", "95", "68_fixed_rig")))
     t = report["timing"]
     lines.append(f"diagnosis time per case (load + fit, {t['workers']} cases at once): median "
                  f"{_fmt(t['diagnosis_median_s'])} s, max {_fmt(t['diagnosis_max_s'])} s")

@@ -35,6 +35,7 @@ from .._compare import channel_kind
 from ._band import RESOLVED_MIN, band_improvement
 from ._decide import decide, leftover_share, model_error_share
 from ._hypotheses import (
+    REFINE_XATOL,
     Problem,
     affordable_range,
     autocorrelation_time,
@@ -65,6 +66,7 @@ from ._summary import significant_updates, stated_uncertainty, structure_energy
 from ._updating import (
     OFFSET_FINDING,
     joint_refit,
+    marginal_uncertainty,
     mark_model_error,
     model_error,
     nuisance_correlation,
@@ -483,6 +485,40 @@ def own_error_weight(block):
                      if isinstance(entry, dict) and entry.get("status") == "ok"))
 
 
+def _signature_slope(points, value, refitted):
+    """d channels / d ln p near ``value``: the secant between the searched points nearest it on either side.
+
+    ``points``: the candidate's (value, sim, evaluation) on the updated rig,
+    the joint refit's point last when ``refitted`` (another rig: left out).
+    The two points must lie at least twice the search's resolution apart in
+    ln p (``REFINE_XATOL``), so that the secant is a slope, not the
+    simulations' rounding; None without such a pair.
+    """
+    pts = [(math.log(v), sim) for v, sim, _ in (points[:-1] if refitted else points) if v > 0 and sim is not None]
+    if value <= 0 or len(pts) < 2:
+        return None
+    x0 = math.log(value)
+    pts.sort(key=lambda p: p[0])
+    pairs = [(a, b) for i, a in enumerate(pts) for b in pts[i + 1:]]
+    # those on either side of the optimum first, then any; nearest first
+    pairs.sort(key=lambda ab: (not ab[0][0] <= x0 < ab[1][0], abs(ab[0][0] - x0) + abs(ab[1][0] - x0)))
+    for a, b in pairs:
+        if b[0] - a[0] >= 2.0 * REFINE_XATOL:
+            return (b[1] - a[1]) / (b[0] - a[0])
+    return None
+
+
+def _marginal(state, candidate, scored, residual):
+    """``marginal_uncertainty`` of a fitted candidate, or None (no update, no slope)."""
+    if state.update is None or scored["value"] <= 0 or scored["at_bound"]:
+        return None
+    slope = _signature_slope(state.points[candidate["name"]], scored["value"], candidate["name"] in state.joints)
+    if slope is None:
+        return None
+    return marginal_uncertainty(state.plain_problem, state.nominal_ctx, state.update, slope, scored["sim"], residual,
+                                state.error_directions)
+
+
 def score_hypotheses(state):
     """Each candidate's held-out evidence, confounders and what it explains, best first."""
     rec, problem, update = state.recording, state.problem, state.update
@@ -521,7 +557,8 @@ def score_hypotheses(state):
             "name": c["name"],
             "main_parameter": main,
             "parameters": params,
-            "uncertainty": stated_uncertainty(s, main, state.null.kappa),
+            "uncertainty": stated_uncertainty(s, main, state.null.kappa,
+                                              _marginal(state, c, s, residuals.get(c["name"]))),
             "range": list(c["range"]),
             "searched_range": list(c["searched"]),
             "rms_before": math.sqrt(s["heldout_before"] / n_w),

@@ -92,8 +92,14 @@ def structure_energy(residual, channels, sigma, width, scale):
 SYSTEMATIC_FLOOR = 0.05
 
 
-def stated_uncertainty(scored, main, kappa):
-    """The stated uncertainty of a fitted main parameter (see ``_hypotheses``)."""
+def stated_uncertainty(scored, main, kappa, marginal=None):
+    """The stated uncertainty of a fitted main parameter (see ``_hypotheses``).
+
+    ``marginal``: ``_updating.marginal_uncertainty``'s result, the ln
+    value's standard deviation with the rig's parameters free; when given
+    it is one of the candidates for the largest, and the interval says how
+    much of it the parameters carry (``correlations``).
+    """
     value = scored["value"]
     sx = profile_uncertainty(scored["profile"], value, kappa)
     fold_x = [math.log(v) for v in scored["fold_values"] if v > 0]
@@ -103,18 +109,33 @@ def stated_uncertainty(scored, main, kappa):
     # Never below SYSTEMATIC_FLOOR: the reconstruction's small systematic
     # errors bias even strong fits by a few percent, which no curvature
     # sees (and never below the search's resolution, REFINE_XATOL).
-    stated = None if sx is None or scored["at_bound"] else max(sx, spread or 0.0, SYSTEMATIC_FLOOR, REFINE_XATOL)
+    floors = max(spread or 0.0, SYSTEMATIC_FLOOR, REFINE_XATOL)
+    fixed = None if sx is None or scored["at_bound"] else max(sx, floors)
+    joint = marginal["sd"] if marginal is not None and fixed is not None else None
+    stated = fixed if joint is None else max(fixed, joint)
+
+    def interval(width):
+        return [value * math.exp(-width), value * math.exp(width)] if width is not None and value > 0 else None
+
     return {
         "parameter": main,
         "std": value * stated if stated is not None and value > 0 else None,
         "relative": stated,
-        "interval_68": ([value * math.exp(-stated), value * math.exp(stated)]
-                        if stated is not None and value > 0 else None),
+        "interval_68": interval(stated),
+        "interval_95": interval(None if stated is None else 1.96 * stated),
         "profile_relative": sx,
+        "marginal_relative": joint,
+        # the same linearized fit with the rig held: how much freeing the parameters widened it
+        "marginal_fixed_rig_relative": (marginal or {}).get("fixed_rig_sd") if joint is not None else None,
+        "fixed_rig_relative": fixed,
+        "interval_68_fixed_rig": interval(fixed),
+        "correlations": (marginal or {}).get("correlations", [])[:3],
         "fold_values": scored["fold_values"],
         "method": "largest of the chi2(ln p) profile curvature (scaled by the residual's dispersion and "
-                  "autocorrelation), half the spread of the two folds' estimates and a floor for the "
-                  f"reconstruction's systematic bias ({SYSTEMATIC_FLOOR:g} in ln p); none at a range bound",
+                  "autocorrelation), the marginal standard deviation with the rig's parameters free (the "
+                  "linearized joint fit, robust covariance), half the spread of the two folds' estimates and a "
+                  f"floor for the reconstruction's systematic bias ({SYSTEMATIC_FLOOR:g} in ln p); none at a "
+                  "range bound",
     }
 
 

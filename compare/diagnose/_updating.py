@@ -68,7 +68,7 @@ from ._scale import REFERENCE
 from ._trials import apply_to_trials, joined_states, stack_trials, trial_contexts
 
 __all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "ErrorDirections", "update_model", "robust_covariance", "joint_refit",
-           "model_error", "finer_discretization", "nuisance_correlation", "mark_model_error"]
+           "model_error", "finer_discretization", "nuisance_correlation", "mark_model_error", "marginal_uncertainty"]
 
 # What a constant offset between a recorded channel and the model may
 # honestly be, with no parameter wrong (one standard deviation): marker
@@ -825,6 +825,64 @@ def _objective_at(problem, sim, coords, tol, offset_sd, errs):
     chi2 = float((problem.W * z * z).sum())
     prior = float(((coords / tol) ** 2).sum() + ((a[e:e + c] / offset_sd) ** 2).sum())
     return chi2 + prior, chi2, a, H_inv
+
+
+def marginal_uncertainty(problem, ctx, update, signature, sim, residual, error_directions=()):
+    """A mechanism's ln value's standard deviation with the rig's parameters free, and its correlations.
+
+    The profile (``_hypotheses.profile_uncertainty``) holds the updated rig
+    fixed, so a mechanism that trades with a parameter (friction's decay
+    with material damping, a sheave's inertia with a cluster's mass) is
+    stated as sharp as if nothing could imitate it. Here the linearized
+    joint fit does not: the design holds the active parameters'
+    sensitivities at the updated rig (with their priors), the mechanism's
+    ``signature`` d channels / d ln p (no prior), the model error's
+    directions and the offsets and clock shift (with theirs), and the
+    covariance is ``robust_covariance``'s (the residual's own scatter, in
+    blocks of its correlation time). Its mechanism entry is the marginal:
+    the profile's variance divided by one minus the squared multiple
+    correlation with everything else.
+
+    Parameters
+    ----------
+    problem : Problem
+        The recording without regressors (the updating's).
+    ctx : dict
+        The nominal context (``channels``, ``parameters``).
+    update : dict
+        ``update_model``'s result.
+    signature : ndarray (n, c)
+    sim, residual : ndarray (n, c)
+        The candidate's channels and its residual (measured minus fitted, NaN where unmeasured).
+
+    Returns
+    -------
+    dict
+        ``sd`` (ln p), ``fixed_rig_sd`` (the same design without the
+        parameters: what holding the rig fixed states) and
+        ``correlations`` ([{parameter, correlation}], largest first).
+    """
+    active = [int(i) for i in update["active"]]
+    params = list(ctx["parameters"])
+    errs = list(error_directions)
+    tol = np.array([p.tolerance for p in params])
+    offset_sd = _offset_prior(ctx)
+    z = np.where(problem.valid, np.nan_to_num(residual), 0.0) * np.sqrt(problem.W)
+    nuisance_precision = np.r_[np.full(len(errs), ERROR_AMPLITUDE_SD**-2.0), offset_sd**-2.0, MAX_SHIFT_PRIOR**-2.0]
+
+    def covariance(columns, precision):
+        X = _design(problem, sim, [*columns, signature, *errs])
+        prior = np.r_[precision, 0.0, nuisance_precision]
+        return robust_covariance(X, z.reshape(sim.shape), np.linalg.inv(X.T @ X + np.diag(prior)), prior)
+
+    cov = covariance([update["sensitivities"][i] for i in active], 1.0 / tol[active] ** 2)
+    fixed = covariance([], np.zeros(0))
+    k = len(active)
+    sd = math.sqrt(max(float(cov[k, k]), 0.0))
+    corr = [{"parameter": params[i].name, "correlation": float(cov[k, j] / math.sqrt(cov[k, k] * cov[j, j]))}
+            for j, i in enumerate(active) if cov[j, j] > 0 and cov[k, k] > 0]
+    corr.sort(key=lambda e: -abs(e["correlation"]))
+    return {"sd": sd, "fixed_rig_sd": math.sqrt(max(float(fixed[0, 0]), 0.0)), "correlations": corr}
 
 
 def nuisance_correlation(problem, signature, update, most=3, tolerances=None):
