@@ -12,6 +12,7 @@ import pytest
 
 from dragline.compare.diagnose._decide import (
     ADEQUATE_RMS,
+    EXPLAINED_MIN,
     LEFTOVER_SHARE,
     MODEL_ERROR_FULL,
     MODEL_ERROR_SHARE,
@@ -154,3 +155,33 @@ def test_a_candidate_shaped_like_a_parameter_change_is_unexplained_only_if_the_t
     assert verdict == "aero_drag", reason
     verdict, reason = decide([best(0.5 * BOUND_TOLERANCES)], THRESHOLD, [], [])
     assert verdict == "unexplained" and "bodies.ball.mass" in reason
+
+
+STRUCTURED = [{"channel": "bucket.x", "window": "swing", "t_start": 2.0, "t_end": 4.5}]
+
+
+def test_offsets_beyond_tolerance_overrule_even_a_strong_candidate():
+    note = "constant offsets of 25 mm on every body that no parameter within tolerance explains"
+    best = _hypothesis("pulley_friction", 9e7, 51.0, 1.2)
+    verdict, reason = decide([best], THRESHOLD, STRUCTURED, [], offsets_ok=False, offsets_note=note)
+    assert (verdict, reason) == ("unexplained", note)
+    assert decide([best], THRESHOLD, STRUCTURED, [], offsets_ok=True)[0] == "pulley_friction"
+
+
+def test_without_a_significant_candidate_a_structured_mismatch_is_unexplained_and_none_otherwise():
+    weak = _hypothesis("aero_drag", 0.5 * THRESHOLD, 1.2, 1.1)
+    verdict, reason = decide([weak], THRESHOLD, STRUCTURED, [])
+    assert verdict == "unexplained" and "bucket.x in swing (2.0-4.5 s)" in reason
+    verdict, reason = decide([weak], THRESHOLD, [], [], updates=["the bucket's mass 3 % heavier"])
+    assert verdict == "none" and "the bucket's mass 3 % heavier" in reason
+
+
+@pytest.mark.parametrize("explained, named", [(EXPLAINED_MIN - 0.05, False), (EXPLAINED_MIN + 0.05, True)])
+def test_a_best_candidate_must_explain_most_of_a_structured_mismatch_that_remains(explained, named):
+    best = _hypothesis("aero_drag", 10 * THRESHOLD, 3.0, 1.1, explained=explained)
+    verdict, reason = decide([best], THRESHOLD, STRUCTURED, STRUCTURED)
+    assert (verdict == "aero_drag") == named, reason
+    if not named:
+        assert f"{100 * explained:.0f} %" in reason and "bucket.x in swing" in reason
+    # with no structured mismatch left after it, the share it explained is not asked
+    assert decide([best], THRESHOLD, STRUCTURED, [])[0] == "aero_drag"

@@ -156,3 +156,30 @@ def test_a_machine_case_is_filmed_in_its_own_lab_and_diagnosed_from_its_session_
     assert out["fitted"] == pytest.approx(1.7, rel=0.5)
     assert set(out["calibration"]) <= {p.name for p in __import__("dragline.simulate", fromlist=["load_rig"])
                                         .load_rig("pendulum").tolerances}
+
+
+def test_wilsons_interval_matches_its_closed_forms():
+    from scipy.stats import norm
+
+    from dragline.benchmarks._discovery import wilson_interval
+
+    z = norm.ppf(0.95)
+    # none of n: from 0 to z^2 / (n + z^2); all of n: mirrored
+    assert wilson_interval(0, 10) == pytest.approx([0.0, z * z / (10 + z * z)], abs=1e-12)
+    assert wilson_interval(10, 10) == pytest.approx([10 / (10 + z * z), 1.0], abs=1e-12)
+    # half of n: centred on a half, half-width z / (2 sqrt(n + z^2))
+    lo, hi = wilson_interval(20, 40)
+    assert (lo + hi) / 2 == pytest.approx(0.5) and (hi - lo) / 2 == pytest.approx(z / (2 * math.sqrt(40 + z * z)))
+
+
+def test_the_summary_counts_the_intervals_that_hold_the_truth_over_the_correctly_named():
+    results = [
+        dict(_case("aero_drag", 1.6, "aero_drag", -0.05), covered_95=True, covered_fixed_rig=True),
+        dict(_case("aero_drag", 5.5, "aero_drag", 0.3), covered_95=True, covered_fixed_rig=False),
+        dict(_case("aero_drag", 0.4, "aero_drag", 0.8), covered_95=False, covered_fixed_rig=False),
+        dict(_case("aero_drag", 0.2, "none"), covered_95=False),  # not named: not counted
+    ]
+    cov = _summarise(results, wall=1.0, workers=2)["coverage"]
+    assert cov["n_named"] == 3
+    assert [cov[k]["covered"] for k in ("68", "95", "68_fixed_rig")] == [1, 2, 1]
+    assert cov["95"]["rate"] == pytest.approx(2 / 3)

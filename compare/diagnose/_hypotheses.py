@@ -53,8 +53,10 @@ Parameter uncertainty
 From the curvature of ``chi2(ln p)`` at the optimum (parabola through the
 best evaluated points): ``sigma_ln_p = sqrt(kappa / a)``, ``kappa`` the
 residual's dispersion (``chi2_min / N``, at least 1) times its integrated
-autocorrelation time; reported with the two folds' estimates, and the
-larger of the profile and the fold spread is the stated uncertainty.
+autocorrelation time; reported with the two folds' estimates. The stated
+uncertainty (``_summary.stated_uncertainty``) is the largest of this
+profile, the fold spread, a floor for systematic bias and the marginal with
+the rig's parameters free (``_updating.marginal_uncertainty``).
 """
 
 from __future__ import annotations
