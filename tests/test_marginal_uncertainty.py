@@ -21,7 +21,7 @@ from dragline.compare.diagnose._updating import marginal_uncertainty
 from dragline.simulate import load_rig
 
 
-def _case(rho, tolerance, seed=3):
+def _case(rho, tolerance, seed=3, finer_shift=None):
     rng = np.random.default_rng(seed)
     n = 4000
     time = np.arange(n) * 0.005
@@ -40,7 +40,8 @@ def _case(rho, tolerance, seed=3):
     ctx = {"parameters": [param], "channels": channels}
     update = {"active": np.array([0]), "sensitivities": [sensitivity]}
     sim = np.zeros((n, 2))  # a rest pose: the clock shift's column (the rate) is zero
-    return marginal_uncertainty(problem, ctx, update, signature, sim, residual)
+    finer = None if finer_shift is None else sim + finer_shift * signature
+    return marginal_uncertainty(problem, ctx, update, signature, sim, residual, finer=finer)
 
 
 @pytest.mark.parametrize("rho", [0.5, 0.8, 0.95])
@@ -56,3 +57,34 @@ def test_a_free_parameter_widens_the_interval_as_its_correlation_says(rho):
 def test_a_parameter_its_prior_pins_leaves_the_interval_as_with_the_rig_held():
     out = _case(0.95, tolerance=1e-6)
     assert out["sd"] / out["fixed_rig_sd"] == pytest.approx(1.0, abs=0.02)
+
+
+def test_the_finer_discretizations_shift_of_the_value_joins_the_interval_twice_over():
+    """A finer model whose whole difference is the signature times 0.1 moves ln p by 0.1; the truth, about
+    twice as far as the next level (Richardson), widens the standard deviation by 0.2 in quadrature."""
+    plain = _case(0.8, tolerance=0.05)
+    shifted = _case(0.8, tolerance=0.05, finer_shift=0.1)
+    assert shifted["discretization_shift"] == pytest.approx(0.1, rel=1e-9)
+    assert shifted["sd"] ** 2 == pytest.approx(plain["sd"] ** 2 + 0.2**2, rel=1e-9)
+    assert plain["discretization_shift"] is None
+
+
+def test_the_signatures_slope_is_the_secant_across_the_optimum_over_a_slope_not_a_rounding():
+    from dragline.compare.diagnose._steps import _signature_slope
+
+    shape = np.array([[1.0, -2.0], [0.5, 3.0]])
+
+    def sim(v):  # channels quadratic in ln p: a secant across the optimum is its slope there to the gap squared
+        x = math.log(v) - math.log(0.02)
+        return shape * (x + 0.5 * x * x)
+
+    points = [(0.0, sim(1.0) * 0, None)] + [(v, sim(v), None) for v in (0.005, 0.0199, 0.0201, 0.019, 0.021, 0.08)]
+    slope = _signature_slope(points, 0.02, refitted=False)
+    # 0.0199 and 0.0201 lie closer than a slope's worth (0.04 in ln p); of the pairs across 0.02 far enough apart
+    # the nearest is 0.0199 and 0.021 (0.054 in ln p from it in all, against 0.056 for 0.019 and 0.0201)
+    xa, xb = math.log(0.0199 / 0.02), math.log(0.021 / 0.02)
+    assert slope == pytest.approx(shape * (1.0 + (xa + xb) / 2), rel=1e-9)
+    # a joint refit's point, on another rig, is never one of the pair
+    refitted = [*points, (0.0202, sim(0.0202) + 5.0, None)]
+    assert _signature_slope(refitted, 0.02, refitted=True) == pytest.approx(slope, rel=1e-12)
+    assert _signature_slope(points[:2], 0.02, refitted=False) is None

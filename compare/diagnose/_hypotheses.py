@@ -70,6 +70,7 @@ from .._executor import as_executor
 from ...simulate import (
     MECHANISMS,
     SimulationError,
+    StaticsError,
     assemble,
     make_mechanism,
     matrix_from_angles,
@@ -404,6 +405,23 @@ def simulate_channels(name, main, value, ctx=None):
             return None
         sims.append(channels_on(res, trial))
     return stack_trials(c, sims)
+
+
+def simulate_channels_finer(name, main, value, ctx, discretization):
+    """``simulate_channels`` at another ``discretization``, each trial from its own equilibrium there (None when
+    a simulation fails)."""
+    physics = list(ctx.get("base_physics", ()))
+    if value != 0.0 and name is not None:
+        physics.append(make_mechanism(name, **{main: value}))
+    sims = []
+    for trial in trial_contexts(ctx):
+        try:
+            res = simulate(ctx["rig"], trial["maneuver"], discretization, physics, duration=trial["duration"],
+                           rate_hz=ctx["rate_hz"])
+        except (SimulationError, StaticsError, FloatingPointError):
+            return None
+        sims.append(channels_on(res, trial))
+    return stack_trials(ctx, sims)
 
 
 def channels_on(result, ctx):

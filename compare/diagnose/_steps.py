@@ -44,6 +44,7 @@ from ._hypotheses import (
     null_threshold,
     score_candidate,
     signature_match,
+    simulate_channels_finer,
     unavailable_reason,
 )
 from ._lead import lead_test
@@ -65,6 +66,7 @@ from ._trials import SEPARATOR, first_maneuver
 from ._summary import significant_updates, stated_uncertainty, structure_energy
 from ._updating import (
     OFFSET_FINDING,
+    finer_discretization,
     joint_refit,
     marginal_uncertainty,
     mark_model_error,
@@ -509,14 +511,22 @@ def _signature_slope(points, value, refitted):
 
 
 def _marginal(state, candidate, scored, residual):
-    """``marginal_uncertainty`` of a fitted candidate, or None (no update, no slope)."""
+    """``marginal_uncertainty`` of a fitted candidate, with its value's discretization shift; None without an
+    update or a slope."""
+    name = candidate["name"]
     if state.update is None or scored["value"] <= 0 or scored["at_bound"]:
         return None
-    slope = _signature_slope(state.points[candidate["name"]], scored["value"], candidate["name"] in state.joints)
+    slope = _signature_slope(state.points[name], scored["value"], name in state.joints)
     if slope is None:
         return None
+    ctx = state.ctx
+    if name in state.joints:  # the candidate's best point sits on its jointly refitted rig
+        joint = state.joints[name]
+        ctx = dict(ctx, rig=joint["rig"], maneuver=joint["maneuver"], initial_state=joint["initial_state"])
+    finer = simulate_channels_finer(name, candidate["main"], scored["value"], ctx,
+                                    finer_discretization(ctx["rig"], ctx["discretization"]))
     return marginal_uncertainty(state.plain_problem, state.nominal_ctx, state.update, slope, scored["sim"], residual,
-                                state.error_directions)
+                                state.error_directions, finer=finer)
 
 
 def score_hypotheses(state):

@@ -130,10 +130,13 @@ def stated_uncertainty(scored, main, kappa, marginal=None):
         "fixed_rig_relative": fixed,
         "interval_68_fixed_rig": interval(fixed),
         "correlations": (marginal or {}).get("correlations", [])[:3],
+        # ln p the next finer discretization moves the value by (its MODEL_ERROR_FACTOR multiple is in the marginal)
+        "discretization_shift": (marginal or {}).get("discretization_shift") if joint is not None else None,
         "fold_values": scored["fold_values"],
         "method": "largest of the chi2(ln p) profile curvature (scaled by the residual's dispersion and "
                   "autocorrelation), the marginal standard deviation with the rig's parameters free (the "
-                  "linearized joint fit, robust covariance), half the spread of the two folds' estimates and a "
+                  "linearized joint fit, robust covariance) with twice the shift of the value at the next finer "
+                  "discretization in quadrature, half the spread of the two folds' estimates and a "
                   f"floor for the reconstruction's systematic bias ({SYSTEMATIC_FLOOR:g} in ln p); none at a "
                   "range bound",
     }

@@ -827,7 +827,7 @@ def _objective_at(problem, sim, coords, tol, offset_sd, errs):
     return chi2 + prior, chi2, a, H_inv
 
 
-def marginal_uncertainty(problem, ctx, update, signature, sim, residual, error_directions=()):
+def marginal_uncertainty(problem, ctx, update, signature, sim, residual, error_directions=(), finer=None):
     """A mechanism's ln value's standard deviation with the rig's parameters free, and its correlations.
 
     The profile (``_hypotheses.profile_uncertainty``) holds the updated rig
@@ -854,13 +854,23 @@ def marginal_uncertainty(problem, ctx, update, signature, sim, residual, error_d
     signature : ndarray (n, c)
     sim, residual : ndarray (n, c)
         The candidate's channels and its residual (measured minus fitted, NaN where unmeasured).
+    finer : ndarray (n, c), optional
+        The candidate at its fitted value simulated at the next finer
+        discretization. Its difference from ``sim``, fitted by the same
+        design, moves ln p by ``discretization_shift``: what the model's
+        own discretization does to this value (a law per element, as
+        bending damping, acts differently on finer ropes). The truth is
+        about ``MODEL_ERROR_FACTOR`` times as far as the next finer level
+        (Richardson), so that many shifts join ``sd`` in quadrature.
 
     Returns
     -------
-    dict
+    dict or None
         ``sd`` (ln p), ``fixed_rig_sd`` (the same design without the
-        parameters: what holding the rig fixed states) and
-        ``correlations`` ([{parameter, correlation}], largest first).
+        parameters: what holding the rig fixed states),
+        ``discretization_shift`` (ln p; None without ``finer``) and
+        ``correlations`` ([{parameter, correlation}], largest first); None
+        when the signature moves nothing (a singular design).
     """
     active = [int(i) for i in update["active"]]
     params = list(ctx["parameters"])
@@ -870,19 +880,29 @@ def marginal_uncertainty(problem, ctx, update, signature, sim, residual, error_d
     z = np.where(problem.valid, np.nan_to_num(residual), 0.0) * np.sqrt(problem.W)
     nuisance_precision = np.r_[np.full(len(errs), ERROR_AMPLITUDE_SD**-2.0), offset_sd**-2.0, MAX_SHIFT_PRIOR**-2.0]
 
-    def covariance(columns, precision):
+    def design(columns, precision):
         X = _design(problem, sim, [*columns, signature, *errs])
         prior = np.r_[precision, 0.0, nuisance_precision]
-        return robust_covariance(X, z.reshape(sim.shape), np.linalg.inv(X.T @ X + np.diag(prior)), prior)
+        return X, prior, np.linalg.inv(X.T @ X + np.diag(prior))
 
-    cov = covariance([update["sensitivities"][i] for i in active], 1.0 / tol[active] ** 2)
-    fixed = covariance([], np.zeros(0))
+    try:
+        X, prior, H_inv = design([update["sensitivities"][i] for i in active], 1.0 / tol[active] ** 2)
+        X0, prior0, H0_inv = design([], np.zeros(0))
+    except np.linalg.LinAlgError:
+        return None  # a signature that moves nothing: no value to state an uncertainty of
+    cov = robust_covariance(X, z, H_inv, prior)
+    fixed = robust_covariance(X0, z, H0_inv, prior0)
     k = len(active)
-    sd = math.sqrt(max(float(cov[k, k]), 0.0))
+    shift = None
+    if finer is not None:
+        d = (np.where(problem.valid, finer - sim, 0.0) * np.sqrt(problem.W)).ravel()
+        shift = float((H_inv @ (X.T @ d))[k])
+    sd = math.sqrt(max(float(cov[k, k]), 0.0) + (0.0 if shift is None else (MODEL_ERROR_FACTOR * shift) ** 2))
     corr = [{"parameter": params[i].name, "correlation": float(cov[k, j] / math.sqrt(cov[k, k] * cov[j, j]))}
             for j, i in enumerate(active) if cov[j, j] > 0 and cov[k, k] > 0]
     corr.sort(key=lambda e: -abs(e["correlation"]))
-    return {"sd": sd, "fixed_rig_sd": math.sqrt(max(float(fixed[0, 0]), 0.0)), "correlations": corr}
+    return {"sd": sd, "fixed_rig_sd": math.sqrt(max(float(fixed[0, 0]), 0.0)), "discretization_shift": shift,
+            "correlations": corr}
 
 
 def nuisance_correlation(problem, signature, update, most=3, tolerances=None):
