@@ -99,6 +99,8 @@ class Sensitivities:
     result : SimulationResult
     tangents : ndarray (N, n_state, nd)
         d states / d coordinate j, per record (absolute Euler angles, as ``result.states``).
+    scales : ndarray (nd,)
+        Each coordinate's scale (``simulate_sensitivities``'s ``steps``).
     """
 
     def __init__(self, result, tangents, steps, plus, minus, scales=None):
@@ -113,7 +115,8 @@ class Sensitivities:
         That is the first record at which one scale of some coordinate (a
         tolerance, say) moves a body's mass centre or a rope's particle, by
         the tangent, further than the machine's size (the diagonal of the box
-        around them at the start): no change of that size can be linear.
+        around them and the fixed points at the start): no change of that
+        size can be linear.
         Where ropes or chains turn slack and taut element by element, the
         scheme itself can be that sensitive - the derivative is exact, and
         differences over ever smaller steps grow with it - while any finite
@@ -125,7 +128,8 @@ class Sensitivities:
         model = self.result.model
         rows = np.r_[[12 * b + c for b in range(model.n_bodies) for c in range(3)],
                      np.arange(model.o_part, model.o_vel)].astype(int)
-        start = self.result.states[0, rows].reshape(-1, 3)
+        points = np.asarray(model.arrays["point_pos"], float)
+        start = np.vstack([self.result.states[0, rows].reshape(-1, 3), points[0].reshape(-1, 3)])
         size = float(np.linalg.norm(start.max(axis=0) - start.min(axis=0)))
         moved = np.abs(self.tangents[:, rows, :] * self.scales).max(axis=(1, 2))
         beyond = np.flatnonzero(moved > size)
