@@ -28,7 +28,9 @@ def _pendulum(length, g=G):
 
 def test_the_dragline_keeps_every_constant_as_it_was_set():
     scale = machine_scale(load_rig())
-    assert scale.swing_hz == REFERENCE_SWING_HZ
+    # The eigenvalue to its last digits depends on the LAPACK build (numpy 2.4.6's OpenBLAS 0.3.31 gives
+    # 0.35231780235805377, 8e-11 from the constant): the ratios' three-digit rounding is what keeps the floors.
+    assert scale.swing_hz == pytest.approx(REFERENCE_SWING_HZ, rel=1e-9)
     assert scale.length == 1.0 and scale.time == 1.0
     assert scale.floor(STRUCTURE_FLOOR, "position") == STRUCTURE_FLOOR["position"]
     assert scale.lowpass_width(0.1, 1 / 200) == 21  # 0.1 s at 200 Hz, as before

@@ -31,7 +31,8 @@ from ...simulate import assemble, default_maneuver, linear_modes, solve_statics
 __all__ = ["MachineScale", "machine_scale", "REFERENCE", "FREE_HZ"]
 
 # The built-in dragline's slowest swing (Hz) at rest under the dig's first row (baseline discretization, springs
-# Ks + Kv): ``machine_scale(load_rig())`` gives it to the last bit.
+# Ks + Kv): ``machine_scale(load_rig())`` gives it to 1e-10 (the last digits are the LAPACK build's; the scale's
+# three-digit rounding of its ratios leaves the dragline's own constants exact either way).
 REFERENCE_SWING_HZ = 0.35231780232859233
 REFERENCE_G = 9.81
 # Below this a mode is a motion nothing resists (a body spinning about its rope: the differences' noise), not a
