@@ -7,7 +7,9 @@ the output map) against central differences of ``simulate`` (or of the
 scheme over a few record intervals) where they have converged
 (``_converged_difference``), on trials short and smooth enough (no rope
 turns slack, no ring or joint switches between sticking and slipping)
-that they do.
+that they do. The last test goes through an episode where chains turn
+slack and taut element by element, to show where no derivative holds
+(``Sensitivities.horizon``).
 """
 
 from __future__ import annotations
