@@ -103,11 +103,11 @@ class Sensitivities:
         Each coordinate's scale (``simulate_sensitivities``'s ``steps``).
     """
 
-    def __init__(self, result, tangents, steps, plus, minus, scales=None):
+    def __init__(self, result, tangents, steps, plus, minus):
         self.result = result
         self.tangents = tangents
         self._steps, self._plus, self._minus = steps, plus, minus
-        self.scales = np.asarray(steps, float) / ASSEMBLY_STEP if scales is None else np.asarray(scales, float)
+        self.scales = np.asarray(steps, float) / ASSEMBLY_STEP
 
     def horizon(self):
         """The time (s) from which the tangent is no guide to a change of one scale in some direction (inf: never).
@@ -203,4 +203,4 @@ def simulate_sensitivities(build, coords, steps, *, discretization="baseline", d
     out_dt = 1.0 / rate_hz
     _, tangents = integrate_tangent(result.states[0], dY0, t0, out_dt, result.substeps, m, dm,
                                     _kernel.make_work(m), make_tangent_work(m, len(coords)))
-    return Sensitivities(result, tangents, h, plus, minus, np.asarray(steps, float))
+    return Sensitivities(result, tangents, h, plus, minus)

@@ -385,8 +385,11 @@ def _init(ctx):
     _CTX.update(ctx)
 
 
-def simulate_channels(name, main, value, ctx=None):
+def simulate_channels(name, main, value, ctx=None, discretization=None):
     """One candidate simulation's dynamic channels on the problem's time base.
+
+    ``discretization``: another than the context's, each trial then from its
+    own equilibrium there (the context's initial states are of its level).
 
     Returns
     -------
@@ -398,30 +401,15 @@ def simulate_channels(name, main, value, ctx=None):
         physics.append(make_mechanism(name, **{main: value}))
     sims = []
     for trial in trial_contexts(c):
+        start = {"initial_state": trial["initial_state"]} if discretization is None else {}
         try:
-            res = simulate(c["rig"], trial["maneuver"], c["discretization"], physics, duration=trial["duration"],
-                           rate_hz=c["rate_hz"], initial_state=trial["initial_state"])
-        except (SimulationError, FloatingPointError):
-            return None
-        sims.append(channels_on(res, trial))
-    return stack_trials(c, sims)
-
-
-def simulate_channels_finer(name, main, value, ctx, discretization):
-    """``simulate_channels`` at another ``discretization``, each trial from its own equilibrium there (None when
-    a simulation fails)."""
-    physics = list(ctx.get("base_physics", ()))
-    if value != 0.0 and name is not None:
-        physics.append(make_mechanism(name, **{main: value}))
-    sims = []
-    for trial in trial_contexts(ctx):
-        try:
-            res = simulate(ctx["rig"], trial["maneuver"], discretization, physics, duration=trial["duration"],
-                           rate_hz=ctx["rate_hz"])
+            level = c["discretization"] if discretization is None else discretization
+            res = simulate(c["rig"], trial["maneuver"], level, physics,
+                           duration=trial["duration"], rate_hz=c["rate_hz"], **start)
         except (SimulationError, StaticsError, FloatingPointError):
             return None
         sims.append(channels_on(res, trial))
-    return stack_trials(ctx, sims)
+    return stack_trials(c, sims)
 
 
 def channels_on(result, ctx):

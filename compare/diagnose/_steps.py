@@ -44,7 +44,7 @@ from ._hypotheses import (
     null_threshold,
     score_candidate,
     signature_match,
-    simulate_channels_finer,
+    simulate_channels,
     unavailable_reason,
 )
 from ._lead import lead_test
@@ -523,8 +523,8 @@ def _marginal(state, candidate, scored, residual):
     if name in state.joints:  # the candidate's best point sits on its jointly refitted rig
         joint = state.joints[name]
         ctx = dict(ctx, rig=joint["rig"], maneuver=joint["maneuver"], initial_state=joint["initial_state"])
-    finer = simulate_channels_finer(name, candidate["main"], scored["value"], ctx,
-                                    finer_discretization(ctx["rig"], ctx["discretization"]))
+    finer = simulate_channels(name, candidate["main"], scored["value"], ctx,
+                              finer_discretization(ctx["rig"], ctx["discretization"]))
     return marginal_uncertainty(state.plain_problem, state.nominal_ctx, state.update, slope, scored["sim"], residual,
                                 state.error_directions, finer=finer)
 
