@@ -13,6 +13,9 @@ measure what a user's code would get.
   ``bench_triangulation``: speed against OpenCV's pairwise triangulation
 - ``bench_diagnosis`` (``diagnosis_summary_lines``): one diagnosis of the
   sample session, timed end to end as the command runs it
+- ``bench_detection`` (``detection_summary_lines``): each candidate's
+  detection threshold on the dig, from the truth model, which the
+  trusted-verdict cases are multiples of
 - ``bench_discovery`` (``discovery_command``, ``discovery_summary_lines``):
   blind sessions diagnosed and scored against the physics hidden in them,
   on the dragline or (``--realism --rig NAME``, ``_machine_cases``) another
@@ -39,6 +42,8 @@ _EXPORTS = {
     "bench_reconstruction": ("_reconstruction", "bench_reconstruction"),
     "bench_diagnosis": ("_diagnosis", "bench_diagnosis"),
     "diagnosis_summary_lines": ("_diagnosis", "summary_lines"),
+    "bench_detection": ("_detection", "bench_detection"),
+    "detection_summary_lines": ("_detection", "summary_lines"),
     "bench_discovery": ("_discovery", "bench_discovery"),
     "discovery_command": ("_discovery", "bench_command"),
     "discovery_summary_lines": ("_discovery", "summary_lines"),

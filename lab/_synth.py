@@ -50,6 +50,7 @@ __all__ = [
     "DEFAULTS",
     "MAX_RATE_HZ",
     "project_views",
+    "delayed_points",
     "fov_radius",
     "on_sensor",
     "body_boxes",
@@ -349,9 +350,31 @@ def add_ghosts(detections, ghost_rate, rng, image_size, offset_px=GHOST_OFFSET_P
     return det, ghosts
 
 
-def _observe(points, cameras, rngs, noise_px, dropout, ghost_rate, hidden=None):
-    """Run the stages on one take; return (detections, exact views, masks)."""
-    exact = project_views(points, cameras)
+def delayed_points(points, time, delay):
+    """What a camera whose frames show the scene ``delay`` seconds late sees at each frame time.
+
+    ``points`` (frames, markers, 3) at ``time`` (frames,): each frame's
+    positions at ``time - delay``, linearly interpolated between frames and
+    held at the first frame before the take starts.
+    """
+    pts = np.asarray(points, float)
+    flat = pts.reshape(pts.shape[0], -1)
+    t = np.asarray(time, float) - float(delay)
+    out = np.column_stack([np.interp(t, time, flat[:, j]) for j in range(flat.shape[1])])
+    return out.reshape(pts.shape)
+
+
+def _observe(points, cameras, rngs, noise_px, dropout, ghost_rate, hidden=None, time=None, delays=None):
+    """Run the stages on one take; return (detections, exact views, masks).
+
+    ``delays`` (s, one per camera) with the frames' ``time``: each camera
+    sees the take that late (``delayed_points``).
+    """
+    if delays is None:
+        exact = project_views(points, cameras)
+    else:
+        exact = np.stack([project_views(delayed_points(points, time, d), [cam])[0]
+                          for cam, d in zip(cameras, delays)])
     det = exact.copy()
     if hidden is not None:
         det[hidden] = np.nan
@@ -377,7 +400,7 @@ def synthesize_session(result, cameras, seed=0, noise_px=DEFAULTS["noise_px"], d
                        occlusion=DEFAULTS["occlusion"],
                        wand_frames=DEFAULTS["wand_frames"], wand_rate_hz=DEFAULTS["wand_rate_hz"],
                        lframe_frames=DEFAULTS["lframe_frames"], metadata=None, recorded_ns=None,
-                       wand_volume=WAND_VOLUME, lframe=None, wand_length=WAND_LENGTH):
+                       wand_volume=WAND_VOLUME, lframe=None, wand_length=WAND_LENGTH, camera_delay_s=None):
     """Film a simulation: the calibration takes and the trial's 2D centroids.
 
     Parameters
@@ -414,6 +437,10 @@ def synthesize_session(result, cameras, seed=0, noise_px=DEFAULTS["noise_px"], d
         L-frame's four markers (m, (4, 3); ``lframe_points()`` by default)
         and the wand's length (m): the built-in lab's by default, a
         ``LabLayout``'s for another machine.
+    camera_delay_s : sequence of float, optional
+        Per camera, how late (s) its trial frames show the scene against
+        their time stamps: cameras out of sync (a latency the lab did not
+        correct). The calibration takes are static or slow and unaffected.
 
     Returns
     -------
@@ -454,8 +481,14 @@ def synthesize_session(result, cameras, seed=0, noise_px=DEFAULTS["noise_px"], d
     if occlusion:
         _, centres, axes, half = body_boxes(table, rig)
         hidden = occlusion_mask(markers, cameras, centres, axes, half)
+    delays = None
+    if camera_delay_s is not None:
+        delays = np.asarray(camera_delay_s, float).reshape(-1)
+        if delays.size != len(cameras) or not np.isfinite(delays).all():
+            raise ValueError(f"camera_delay_s needs one finite delay per camera ({len(cameras)})")
+        settings["camera_delay_s"] = delays.tolist()
     trial, exact, dropped, ghosts = _observe(markers, cameras, rngs["trial"], noise_px, dropout,
-                                             ghost_rate, hidden)
+                                             ghost_rate, hidden, time=np.asarray(result.time, float), delays=delays)
 
     wand_points = wand_motion(wand_frames, np.random.default_rng(wand_seq), rate_hz=wand_rate_hz,
                               wand_length=wand_length, volume=wand_volume)

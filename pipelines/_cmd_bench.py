@@ -22,6 +22,9 @@ def add_parser(sub):
     p.add_argument("--realism", action="store_true",
                    help="discovery: truth rigs drawn within the rig's tolerances, simulated finer than the "
                         "diagnosis, with out-of-menu physics among the cases")
+    p.add_argument("--verdict-set", action="store_true",
+                   help="discovery --realism: the trusted-verdict set, 60 cases (each candidate at 2, 5 and 20 times "
+                        "its detection threshold, twice; 20 with nothing added; 10 out of the menu)")
     p.add_argument("--rig", metavar="NAME", help="discovery --realism: another built-in machine's cases "
                                                   "(pendulum, slung_load, gantry_crane; default the dragline); "
                                                   "sensitivities: the machine whose parameters are differentiated")
@@ -82,6 +85,13 @@ def _discovery(args):
     return discovery_command(args)
 
 
+def _detection(args):
+    from dragline.benchmarks import bench_detection, detection_summary_lines
+
+    report = bench_detection(workers=args.workers, progress=lambda line: print(line, file=sys.stderr))
+    return report, detection_summary_lines(report)
+
+
 def _sensitivities(args):
     from dragline.benchmarks import bench_sensitivities, sensitivities_summary_lines
 
@@ -96,7 +106,7 @@ def _real(args):
 
 
 BENCHES = {"simulate": _simulate, "capture": _capture, "reconstruct": _reconstruct, "triangulation": _triangulation,
-           "diagnosis": _diagnosis, "discovery": _discovery, "real": _real, "sensitivities": _sensitivities}
+           "diagnosis": _diagnosis, "detection": _detection, "discovery": _discovery, "real": _real, "sensitivities": _sensitivities}
 
 
 def run(args):

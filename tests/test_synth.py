@@ -314,3 +314,37 @@ def test_session_directory_is_created_complete_or_not_at_all(run, cams, tmp_path
         atomic_directory(target, fill, overwrite=True)
     assert sorted(os.listdir(target)) == [".dragline-output", "capture.mcap", "maneuver.csv"]
     assert sorted(os.listdir(tmp_path)) == ["session"]
+
+
+def test_a_delayed_camera_sees_the_scene_that_late_and_the_others_do_not(run, cams):
+    # Against the run's own record: a camera 5 ms late (one record interval at 200 Hz) sees at frame k what
+    # the markers were at frame k - 1, projected by OpenCV; a camera with no delay sees frame k itself.
+    from dragline.simulate import marker_positions
+
+    _, markers = marker_positions(run)
+    delays = np.zeros(len(cams))
+    delays[2] = 0.005
+    _, truth = synthesize_session(run, cams, seed=0, wand_frames=0, lframe_frames=0, occlusion=False,
+                                  camera_delay_s=delays)
+    for c in (0, 2):
+        shown = markers[:-1] if c == 2 else markers[1:]
+        exact = truth["exact"][c, 1:]
+        for m in range(markers.shape[1]):
+            seen = np.isfinite(exact[:, m, 0])
+            want = project_points(shown[seen, m], cams[c])
+            assert np.allclose(exact[seen, m], want, atol=1e-6), (c, m)
+    assert truth["settings"]["camera_delay_s"] == delays.tolist()
+    with pytest.raises(ValueError, match="one finite delay per camera"):
+        synthesize_session(run, cams, wand_frames=0, lframe_frames=0, camera_delay_s=[0.001])
+
+
+def test_delayed_points_interpolate_between_frames_and_hold_the_first():
+    from dragline.lab._synth import delayed_points
+
+    time = np.arange(5) * 0.01
+    points = np.zeros((5, 1, 3))
+    points[:, 0, 0] = 2.0 * time + 1.0  # linear: interpolation is exact
+    late = delayed_points(points, time, 0.0025)
+    assert np.allclose(late[1:, 0, 0], 2.0 * (time[1:] - 0.0025) + 1.0)
+    assert late[0, 0, 0] == 1.0  # before the take: its first frame
+    assert np.array_equal(late[:, 0, 1:], points[:, 0, 1:])
