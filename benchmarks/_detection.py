@@ -33,9 +33,9 @@ from scipy.optimize import lsq_linear
 
 from dragline.compare.diagnose._hypotheses import simulate_channels
 from dragline.compare.diagnose._recording import load_recording
-from dragline.compare.diagnose._updating import ERROR_AMPLITUDE_SD
 from dragline.compare.diagnose._state import DiagnosisState
 from dragline.compare.diagnose._steps import align_recording, locate_nominal, own_error_weight, update_rig
+from dragline.compare.diagnose._updating import ERROR_AMPLITUDE_SD
 from dragline.lab import lab_for_rig, synthesize_session, write_session_dir
 from dragline.simulate import MECHANISMS, default_maneuver, load_rig, marker_positions, simulate
 
@@ -163,6 +163,7 @@ def bench_detection(seed=DETECTION_SEED, candidates=None, workers=2, progress=No
 
 
 def summary_lines(report):
+    """Lines for the terminal: the target and each candidate's threshold with its multiples."""
     lines = [f"detection thresholds on the dig (own error chi2 {report['own_error_chi2']:.4g}, seed {report['seed']}):"]
     for name, c in report["candidates"].items():
         m = c["multiples"]

@@ -14,7 +14,10 @@ Figures: a confusion matrix (truth x verdict), the fitted parameter's
 relative error and whether the stated 68 % interval covers the truth, the
 false-positive rate on the no-physics cases (a mechanism named where there
 is none), and per mechanism the smallest magnitude found reliably (named
-correctly there and at every larger magnitude tried).
+correctly there and at every larger magnitude tried). The trusted-verdict
+set (``verdict_cases``, ``--realism --verdict-set``) adds the false-name
+rate's Clopper-Pearson bound, and counts a named mechanism right only
+with its parameter within ``RIGHT_WITHIN``.
 
 Magnitudes: from barely detectable to strong, each strictly inside the
 searched range and off the fit's log grid (a truth on a grid point or at a
@@ -55,8 +58,8 @@ from dragline.simulate import (
 )
 
 __all__ = ["MAGNITUDES", "LIMIT_CASES", "REALISTIC_MAGNITUDES", "REALISTIC_LIMIT_CASES", "DETECTION_THRESHOLDS",
-           "default_cases", "realistic_cases", "verdict_cases", "creeping", "clopper_pearson_upper", "bench_discovery", "summary_lines",
-           "bench_command"]
+           "default_cases", "realistic_cases", "verdict_cases", "creeping", "clopper_pearson_upper",
+           "bench_discovery", "summary_lines", "bench_command"]
 
 MAGNITUDES = {
     "aero_drag": (0.12, 0.4, 1.6, 5.5),
@@ -204,6 +207,8 @@ def verdict_cases(seed=0):
     cases += list(OUT_OF_MENU)
     cases += [(None, 0.0)] * VERDICT_NONE
     return [(name, float(value), seed * 1000 + 500 + k, "realistic") for k, (name, value) in enumerate(cases)]
+
+
 # Finer than the diagnosis's baseline: the truth's own discretization.
 TRUTH_DISCRETIZATION = "medium"
 
