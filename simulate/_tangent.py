@@ -31,7 +31,7 @@ from numba import njit
 from ._kernel import (NO_REFCOUNT, REBASE_ROLL, _body_matrix, _body_pose, _offsets, rebase, record_state, rhs,
                       rhs_maxwell_update)
 from ._tangent_impulses import impulses_tangent
-from ._verlet import _euler_angle_rates, _euler_angle_rates_trig, _maxwell_factors, element_stretch
+from ._verlet import _euler_angle_rates_trig, _maxwell_factors, element_stretch
 
 __all__ = ["TANGENT_FIELDS", "TangentModel", "make_tangent_work", "integrate_tangent", "rhs_tangent_at"]
 
@@ -520,7 +520,7 @@ def _step_tangent(t, h, y, acc, y_eval, dY, dacc, dY_eval, m, dm, work, tw):
             dY[o + 6, k] += h * e0
             dY[o + 7, k] += h * e1
             dY[o + 8, k] += h * e2
-        d0, d1, d2 = _euler_angle_rates(roll_m, yaw_m, p, q, r)
+        d0, d1, d2 = _euler_angle_rates_trig(sfm, cfm, ssm, csm, p, q, r)  # the same bits as _euler_angle_rates
         y[o + 6] = roll + h * d0
         y[o + 7] = pitch + h * d1
         y[o + 8] = yaw + h * d2

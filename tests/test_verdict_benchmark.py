@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 from scipy.stats import binom
 
-from dragline.benchmarks._detection import _unabsorbed_chi2, threshold_crossing
 from dragline.benchmarks._discovery import (
     DETECTION_THRESHOLDS,
     THRESHOLD_MULTIPLES,
@@ -22,6 +21,7 @@ from dragline.benchmarks._discovery import (
     creeping,
     verdict_cases,
 )
+from dragline.compare.diagnose._detection import threshold_crossing, unabsorbed_chi2
 from dragline.compare.diagnose._hypotheses import N_GRID
 from dragline.simulate import MECHANISMS, default_maneuver, load_rig
 
@@ -50,14 +50,14 @@ def test_what_the_rig_cannot_absorb_is_a_ridge_regressions_residual():
     a, lam = 2.0, 150.0
     cc, oo = float((c * c).sum()), float((o * o).sum())
     free = np.array([[-np.inf, np.inf]])
-    left = _unabsorbed_chi2(problem, a * c + o, [c], np.array([lam]), free)
+    left = unabsorbed_chi2(problem, a * c + o, [c], np.array([lam]), free)
     assert left == pytest.approx(oo + a * a * cc * lam / (cc + lam), rel=1e-8)
     # without a prior the column takes its part whole; a bound stops it at the bound
-    assert _unabsorbed_chi2(problem, a * c + o, [c], np.array([0.0]), free) == pytest.approx(oo, rel=1e-8)
-    bounded = _unabsorbed_chi2(problem, a * c + o, [c], np.array([0.0]), np.array([[-0.5, 0.5]]))
+    assert unabsorbed_chi2(problem, a * c + o, [c], np.array([0.0]), free) == pytest.approx(oo, rel=1e-8)
+    bounded = unabsorbed_chi2(problem, a * c + o, [c], np.array([0.0]), np.array([[-0.5, 0.5]]))
     assert bounded == pytest.approx(oo + (a - 0.5) ** 2 * cc, rel=1e-8)
     # each channel's offset is free: a constant weighs nothing
-    assert _unabsorbed_chi2(problem, np.full((n, 1), 3.0), [], None, None) == pytest.approx(0.0, abs=1e-20)
+    assert unabsorbed_chi2(problem, np.full((n, 1), 3.0), [], None, None) == pytest.approx(0.0, abs=1e-20)
 
 
 def test_clopper_pearson_upper_bound_is_the_binomial_tail_and_matches_the_issues_examples():

@@ -19,6 +19,8 @@ the work is in one module per concern (docs/diagnosis.md states the method):
 - ``_trials``: several trials of one machine stacked as one recording;
 - ``_predict``: trials the fit never saw, predicted;
 - ``_leave_one_out``: each trial in turn left out and predicted;
+- ``_detection``: each candidate's detection threshold on a recording
+  (what the rig cannot absorb against the model's own error);
 - ``_state`` and ``_steps``: the state object and the steps over it;
 - ``_diagnose``: the steps run in order, the document read off the state.
 """
@@ -32,10 +34,11 @@ from ._diagnose import (
     write_diagnosis_json,
     write_diagnosis_report,
 )
+from ._detection import detection_thresholds
 from ._hypotheses import candidate_list
 from ._leave_one_out import leave_one_out
 from ._scale import FREE_HZ, MachineScale, machine_scale
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
            "write_diagnosis_report", "candidate_list", "draw_held_out", "leave_one_out", "MachineScale",
-           "machine_scale", "FREE_HZ"]
+           "machine_scale", "FREE_HZ", "detection_thresholds"]
