@@ -1,4 +1,4 @@
-"""Each candidate's detection threshold on a recording's maneuver: what the rig cannot absorb against the model's error.
+"""Each candidate's detection threshold on a recording: what the rig cannot absorb, against the model's own error.
 
 A candidate's signature at ``p`` is its simulation on the updated rig
 minus the updated model's. Its weight is the chi2 of what is left after
@@ -115,8 +115,9 @@ def detection_thresholds(path, rig, candidates, workers=2, progress=None):
     """
     state = _updated_state(path, rig, workers, progress)
     target = own_error_weight(state.model_error_block)
-    columns = [*state.update["sensitivities"], *state.error_directions]
-    tol = np.array([p.tolerance for p in state.ctx["parameters"]])
+    sensitivities = state.update["sensitivities"] if state.update is not None else []  # a rig with no tolerances
+    columns = [*sensitivities, *state.error_directions]
+    tol = np.array([p.tolerance for p in state.ctx["parameters"]]) if sensitivities else np.zeros(0)
     precision = np.r_[tol**-2.0, np.full(len(state.error_directions), ERROR_AMPLITUDE_SD**-2.0)]
     bound = state.error_directions.amplitude_bounds()[:, 1]
     bounds = np.vstack([np.tile([-np.inf, np.inf], (len(tol), 1)), np.column_stack([-bound, bound])])
