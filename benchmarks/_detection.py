@@ -21,6 +21,7 @@ import shutil
 import tempfile
 
 from dragline.compare import detection_thresholds
+from ._discovery import THRESHOLD_MULTIPLES, TRUTH_DISCRETIZATION
 from dragline.lab import lab_for_rig, synthesize_session, write_session_dir
 from dragline.simulate import MECHANISMS, default_maneuver, load_rig, marker_positions, simulate
 
@@ -28,8 +29,6 @@ __all__ = ["DETECTION_SEED", "bench_detection", "summary_lines"]
 
 # A seed no evaluation draws from (evaluation seeds are seed * 1000 + 500 + k).
 DETECTION_SEED = 990_100
-TRUTH_DISCRETIZATION = "medium"
-MULTIPLES = (2, 5, 20)
 
 
 def _session(folder, seed, rig):
@@ -64,7 +63,7 @@ def bench_detection(seed=DETECTION_SEED, candidates=None, workers=2, progress=No
     for name, c in found["candidates"].items():
         p = c["threshold"]
         out["candidates"][name] = dict(c, main=MECHANISMS[name].main, range=list(MECHANISMS[name].range),
-                                       multiples={f"{m}x": m * p for m in MULTIPLES})
+                                       multiples={f"{m}x": m * p for m in THRESHOLD_MULTIPLES})
     return out
 
 

@@ -342,7 +342,6 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_
             return bool(interval and interval[0] <= value <= interval[1])
 
         # Right means the parameter within RIGHT_WITHIN too (issue 37), not the name alone.
-        out["named"] = out["right"]
         out["right"] = out["right"] and abs(fitted / value - 1.0) <= RIGHT_WITHIN
         out.update(fitted=fitted, relative_error=fitted / value - 1.0 if value else None,
                    interval_68=u.get("interval_68"), covered=covers("interval_68"), covered_95=covers("interval_95"),

@@ -23,7 +23,7 @@ from ._hypotheses import simulate_channels
 from ._recording import load_recording
 from ._state import DiagnosisState
 from ._steps import align_recording, locate_nominal, own_error_weight, update_rig
-from ._updating import ERROR_AMPLITUDE_SD
+from ._updating import ERROR_AMPLITUDE_SD, _centred
 
 __all__ = ["detection_thresholds", "threshold_crossing", "unabsorbed_chi2"]
 
@@ -68,16 +68,10 @@ def unabsorbed_chi2(problem, signature, columns, precision, bounds):
     joint refit hold them. A weak signature is absorbed almost whole, a
     strong one cannot be.
     """
-    W, valid = problem.W, problem.valid
-
-    def centred(x):
-        x = np.where(valid, x, 0.0)
-        return ((x - (W * x).sum(0) / np.maximum(W.sum(0), 1e-300)) * np.sqrt(W)).ravel()
-
-    g = centred(signature)
+    g = _centred(problem, signature).ravel()
     if not columns:
         return float(g @ g)
-    J = np.column_stack([centred(c) for c in columns])
+    J = np.column_stack([_centred(problem, c).ravel() for c in columns])
     A = np.vstack([J, np.diag(np.sqrt(precision))])
     fit = lsq_linear(A, np.r_[g, np.zeros(len(columns))], bounds=(bounds[:, 0], bounds[:, 1]))
     left = g - J @ fit.x
