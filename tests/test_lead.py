@@ -1,51 +1,100 @@
-"""Whether a candidate's held-out lead is real (dragline.compare.diagnose._lead) on losses built by hand."""
+"""Whether a candidate's held-out lead is real (dragline.compare.diagnose._lead), on residuals built by hand.
 
-import math
+The spread the test estimates from one record is checked against the
+spread of the lead over many independent records of the same residual
+process: the quantity the test claims to know.
+"""
 
 import numpy as np
 import pytest
 from scipy import stats
 
-from dragline.compare.diagnose._lead import LEAD_BATCH_S, lead_test
+from dragline.compare.diagnose._hypotheses import Problem
+from dragline.compare.diagnose._lead import lead_tests
+
+DT = 0.005
+TIME = np.arange(0.0, 20.0, DT)
 
 
-def test_the_statistic_is_the_lead_over_its_newey_west_spread_worked_by_hand():
-    # Four batches whose differences sum to 1, 2, 3, 6: centred -2, -1, 0, 3. Bandwidth
-    # floor(4 (4/100)^(2/9)) = 1 lag: variance 14/4 + 2 (1 - 1/2) (2/4) = 4.0; t = 12 / sqrt(4 x 4) = 3.
-    time = np.arange(4) * LEAD_BATCH_S
-    test = lead_test(time, np.zeros(4), np.array([1.0, 2.0, 3.0, 6.0]))
-    assert test["batches"] == 4 and test["bandwidth"] == 1
-    assert test["lead"] == pytest.approx(12.0)
-    assert test["t"] == pytest.approx(3.0)
-    assert test["critical"] == pytest.approx(stats.t.ppf(0.99, 3))  # 4.54: four batches cannot decide it
-    assert not test["consistent"]
+def _problem(channels=2):
+    # Unit noise level, no free-decay weighting: the weighted residual is the residual itself.
+    return Problem(TIME, np.zeros((TIME.size, channels)), np.ones(channels), TIME[-1] + 1.0)
 
 
-def test_a_small_lead_the_whole_record_holds_is_consistent():
-    rng = np.random.default_rng(1)
-    time = np.arange(0.0, 14.0, 0.005)
-    rival = rng.chisquare(1, time.size) + 0.3  # a rival worse by 30 % of the noise's chi2 at every sample
-    lead = rng.chisquare(1, time.size)
-    test = lead_test(time, lead, rival)
-    assert test["batches"] == 14
-    assert test["consistent"] and test["t"] > test["critical"]
+def _ar1(rng, phi, scale, channels=2):
+    """AR(1) noise of unit marginal variance times ``scale`` (n,) per sample."""
+    e = rng.normal(size=(TIME.size, channels)) * np.sqrt(1.0 - phi**2)
+    x = np.empty_like(e)
+    x[0] = rng.normal(size=channels)
+    for k in range(1, TIME.size):
+        x[k] = phi * x[k - 1] + e[k]
+    return x * scale[:, None]
 
 
-def test_a_large_lead_that_one_stretch_gives_is_not():
-    # The same noise, the rival worse only in one second, by as much as the whole record's lead above.
-    rng = np.random.default_rng(1)
-    time = np.arange(0.0, 14.0, 0.005)
-    rival = rng.chisquare(1, time.size)
-    lead = rng.chisquare(1, time.size)
-    rival[(time >= 6.0) & (time < 7.0)] += 0.3 * 14
-    test = lead_test(time, lead, rival)
-    assert test["lead"] > 0.9 * 0.3 * time.size
-    assert not test["consistent"]
+def _signature(where=None):
+    s = np.stack([np.sin(2 * np.pi * 0.6 * TIME), np.cos(2 * np.pi * 0.9 * TIME)], axis=1)
+    if where is not None:
+        s = s * where[:, None]
+    return s
 
 
-def test_identical_losses_lead_nowhere():
-    time = np.arange(0.0, 5.0, 0.01)
-    loss = np.ones(time.size)
-    test = lead_test(time, loss, loss)
-    assert test["lead"] == 0.0 and not test["consistent"]
-    assert math.isfinite(test["critical"])
+def _spread_over_records(delta, phi, scale, n_records=300):
+    """The lead's standard deviation over independent records: its random part is 2 delta . z."""
+    rng = np.random.default_rng(7)
+    return float(np.std([float((2.0 * delta * _ar1(rng, phi, scale)).sum()) for _ in range(n_records)]))
+
+
+@pytest.mark.parametrize("phi", [0.0, 0.9])
+def test_the_spread_from_one_record_is_the_spread_over_records(phi):
+    rng = np.random.default_rng(3)
+    scale = np.ones(TIME.size)
+    delta = 0.05 * _signature()
+    z = _ar1(rng, phi, scale)
+    test = lead_tests(_problem(), {"lead": z, "rival": z + delta}, ["lead", "rival"])["lead"]["rival"]
+    truth = _spread_over_records(delta, phi, scale)
+    assert test["sd"] == pytest.approx(truth, rel=0.15)
+    assert test["lead"] == pytest.approx(float(((z + delta) ** 2 - z**2).sum()))
+    assert test["t"] == pytest.approx(test["lead"] / test["sd"])
+    assert test["critical"] == pytest.approx(stats.norm.ppf(0.99))
+
+
+def test_a_stretch_of_large_error_is_read_against_its_own_spread():
+    # The residual ten times larger in one stretch, where the rival's difference lives: the lead's spread
+    # is that stretch's (a stationary model would put it at about a third of that).
+    rng = np.random.default_rng(4)
+    stretch = ((TIME >= 8.0) & (TIME < 11.0)).astype(float)
+    scale = 1.0 + 9.0 * stretch
+    delta = 0.05 * _signature(stretch)
+    z = _ar1(rng, 0.5, scale)
+    test = lead_tests(_problem(), {"lead": z, "rival": z + delta}, ["lead", "rival"])["lead"]["rival"]
+    truth = _spread_over_records(delta, 0.5, scale)
+    assert test["sd"] == pytest.approx(truth, rel=0.2)
+    stationary = 2.0 * np.sqrt(float((delta**2).sum()) * float(np.mean(z**2)))
+    assert stationary < 0.5 * truth
+
+
+def test_a_real_lead_is_consistent_and_an_equal_one_rarely():
+    rng = np.random.default_rng(5)
+    scale = np.ones(TIME.size)
+    # The rival misses a signature the lead has: a lead of |delta|^2 = 2000 against a spread of 2 |delta|.
+    delta = np.sqrt(2000.0 / float((_signature() ** 2).sum())) * _signature()
+    z = _ar1(rng, 0.5, scale)
+    test = lead_tests(_problem(), {"lead": z, "rival": z + delta}, ["lead", "rival"])["lead"]["rival"]
+    assert test["consistent"] and test["t"] > 5.0
+    # Two candidates each missing a different signature of the same weight: equally close, the test at its
+    # level (0.99) calls a lead in about 1 of 100 records.
+    a = 0.05 * _signature()
+    b = 0.05 * np.roll(_signature()[:, ::-1], 137, axis=0)
+    b *= np.sqrt(float((a**2).sum()) / float((b**2).sum()))
+    called = 0
+    for k in range(40):
+        z = _ar1(np.random.default_rng(100 + k), 0.5, scale)
+        tests = lead_tests(_problem(), {"x": z + a, "y": z + b}, ["x", "y"], seed=k)
+        called += tests["x"]["y"]["consistent"]
+    assert called <= 3
+
+
+def test_identical_residuals_lead_nowhere():
+    z = np.random.default_rng(6).normal(size=(TIME.size, 2))
+    test = lead_tests(_problem(), {"a": z, "b": z.copy()}, ["a", "b"])["a"]["b"]
+    assert test["lead"] == 0.0 and test["sd"] == 0.0 and not test["consistent"]

@@ -279,7 +279,13 @@ def test_the_joint_refit_fits_the_mechanism_with_the_parameters_not_after_them()
     # value (cd 0.84, the objective 2 % above the truth's: the masses at their bounds); fitted together,
     # the value and the objective are the truth's.
     from dragline.compare.diagnose._hypotheses import _init
-    from dragline.compare.diagnose._updating import _objective_at, _offset_prior, _rig_job, joint_refit
+    from dragline.compare.diagnose._updating import (
+        _objective_at,
+        _offset_prior,
+        _rig_job,
+        joint_refit,
+        rig_alone_channels,
+    )
     from dragline.simulate import default_maneuver, load_rig, make_mechanism
 
     crane = load_rig("gantry_crane")
@@ -310,3 +316,8 @@ def test_the_joint_refit_fits_the_mechanism_with_the_parameters_not_after_them()
                              directions)[0]
     assert joint["mechanism"].parameters["cd"] == pytest.approx(0.9, rel=0.04)
     assert joint["history"][-1]["objective"] <= 1.005 * at_truth
+    # The joint rig with the drag taken out: the crane simulated at the joint's parameters, nothing added.
+    alone = rig_alone_channels(ctx, joint)
+    plain = _channels(simulate(*apply_parameters(crane, maneuver, params, joint["coords"]), duration=10.0), channels)
+    assert np.abs(alone - plain).max() < 1e-6
+    assert np.abs(alone - joint["sim"]).max() > 1e3 * np.abs(alone - plain).max()

@@ -71,8 +71,8 @@ def _no_lead(best, rival, noise):
         return f"a lead of {lead:.1f}, less than noise alone gives ({noise:.1f})"
     test = (best.get("leads") or {}).get(rival["name"])
     if test is not None and not test["consistent"]:
-        return (f"a lead of {lead:.1f} that the record does not hold throughout (t = {test['t']:.2f} over "
-                f"{test['batches']} batches, {test['critical']:.2f} needed)")
+        return (f"a lead of {lead:.1f} that the residual's random part could give (t = {test['t']:.2f} in its "
+                f"spread {test['sd']:.3g}, {test['critical']:.2f} needed)")
     return None
 
 
@@ -123,11 +123,15 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
     3. The best significant candidate at either end of its plausible
        range, or at the end of what could be simulated: "unexplained" (the
        effect is larger, or other, than that mechanism could plausibly give).
+    3b. The best adds less than the threshold at its own joint rig
+       (``credit_at_joint_rig``: the held-out chi2 of the jointly refitted
+       rig without it minus with it): "unexplained" - its gain is the
+       parameters' moving on from where updating stopped.
     4. A significant rival inside its range that the best does not lead
-       beyond what noise alone gives (``noise_threshold``) or not
-       consistently over the record (``_lead.lead_test``, the best's
-       ``leads``): "unexplained" (indistinguishable). A rival at an end of
-       its range is no rival.
+       beyond what noise alone gives (``noise_threshold``) or by more than
+       the residual's random part could give it (``_lead.lead_tests``, the
+       best's ``leads``): "unexplained" (indistinguishable). A rival at an
+       end of its range is no rival.
     4b. The best candidate's signature correlates with a rig parameter's
        sensitivity beyond ``CONFOUNDED`` and that parameter could make it
        within ``BOUND_TOLERANCES`` of its tolerance (the updating's own
@@ -185,6 +189,12 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
         return "unexplained", (f"{best['name']} improves the fit only at the {where_} "
                                f"({best['main_parameter']} = {best['parameters'][best['main_parameter']]:.3g}); "
                                "the mismatch is not what it can plausibly explain")
+    credit = best.get("credit_at_joint_rig")
+    if credit is not None and credit["credit"] < threshold:
+        return "unexplained", (f"{best['name']} improves held-out data by {best['improvement']:.1f}, but at the rig "
+                               f"refitted jointly with it, it adds only {credit['credit']:.1f} (threshold "
+                               f"{threshold:.1f}): the gain is the rig parameters' moving on from where updating "
+                               "stopped, not the mechanism's")
     # A rival at an end of its range is no alternative: it could not be named
     # itself (rule 3), and its improvement there is mostly the joint refit's
     # parameters (a hidden sheave inertia's rival, chain-link friction, sat

@@ -1,19 +1,31 @@
-"""Whether one candidate's held-out lead over another is real: their held-out losses compared sample by sample.
+"""Whether one candidate's held-out lead over another is real: what noise and model error could give it.
 
-Two candidates that both explain a mismatch are two non-nested models,
-both wrong in some part (the model's own error, parameters the updating
-could not reach). Which is closer to the recording is Vuong's question
-(Vuong 1989, Econometrica 57: 307-333): the sum of the pointwise
-differences of their losses, against its own spread. Here the loss is
-each sample's held-out chi2 (``Problem.held_out_loss``), the residual is
-autocorrelated, so the spread is the long-run variance of the differences
-summed over batches of one fold block of each kind, with Newey and West's
-Bartlett weights and bandwidth rule (1994, Rev. Econ. Stud. 61: 631-653),
-and the statistic is read against Student's t with one degree of freedom
-fewer than the batches, one-sided at the null test's quantile. A lead
-that one stretch of the record gives and the rest does not is not
-consistent; a lead the whole record gives, however small its share of
-the chi2, is.
+Two candidates that both explain a mismatch leave held-out residuals
+``r_lead`` and ``r_rival``; the lead is the rival's held-out chi2 minus the
+lead's, ``sum W (r_rival^2 - r_lead^2)``. The maneuver is one fixed
+excitation, not a sample: what varies between recordings of it is the
+residual's random part ``n`` (measurement noise, and the model error the
+surrogates treat as noise), which moves both residuals alike. The lead then
+changes by ``2 sum W (r_rival - r_lead) n`` - linear in ``n``, so Gaussian
+when ``n`` is - and the two candidates are equally close to the recording
+when the lead's mean is zero. The test reads the lead against that term's
+spread, one-sided at the null test's quantile.
+
+The spread comes from surrogates of the lead's own held-out residual, drawn
+as the noise threshold's are (``_hypotheses.null_threshold``: its smoothed
+cross-spectral matrix), but amplitude-modulated by the residual's local RMS
+over ``ENVELOPE_S``: model error is not stationary - a mechanism's
+signature, and the error of the rival that imitates it, live in some phases
+of a maneuver - and a lead that only a stretch where the residual is large
+gives is then read against that stretch's own spread (Priestley's
+modulated process). Neglected: how the two folds' fits themselves follow
+``n`` (a few coefficients each against thousands of samples).
+
+Before this, the lead was judged by Vuong's test (1989) over one-second
+batches: a test for losses drawn alike at every sample. A mechanism's
+signature is not - its share of the lead varies from batch to batch by the
+maneuver's own phases - so the batch spread counted the signature as noise
+and the test lost power as the effect grew.
 """
 
 from __future__ import annotations
@@ -22,51 +34,85 @@ import math
 
 import numpy as np
 from scipy import stats
+from scipy.ndimage import uniform_filter1d
 
-from ._hypotheses import BLOCK_S, NULL_QUANTILE
+from ._hypotheses import BLOCK_S, NULL_QUANTILE, NULL_SURROGATES, _spectral_factor, _weighted_signal
 
-__all__ = ["lead_test", "LEAD_BATCH_S"]
+__all__ = ["lead_tests", "ENVELOPE_S"]
 
-# One block of each fold: every batch holds held-out samples of both fits.
-LEAD_BATCH_S = 2 * BLOCK_S
+# One block of each fold: the envelope's window holds held-out samples of both fits.
+ENVELOPE_S = 2 * BLOCK_S
 
 
-def lead_test(time, loss_lead, loss_rival, quantile=NULL_QUANTILE):
-    """Whether ``loss_lead`` is lower than ``loss_rival`` consistently over the record.
+def lead_tests(problem, residuals, order, seed=0, quantile=NULL_QUANTILE, n_surrogates=NULL_SURROGATES):
+    """Each candidate's lead over every one behind it in ``order``.
 
     Parameters
     ----------
-    time : ndarray (n,)
-        Sample times (s).
-    loss_lead, loss_rival : ndarray (n,)
-        Each sample's held-out chi2 under the two candidates.
+    problem : Problem
+    residuals : dict
+        Name -> held-out residual (n, c) (SI; ``Problem.held_out_residual``).
+    order : list of str
+        Best first.
+    seed : int
     quantile : float
-        One-sided level of the test.
+        One-sided level of each test.
 
     Returns
     -------
     dict
-        ``lead`` (the rival's summed loss minus the lead's), ``t`` (the lead
-        over its long-run standard deviation), ``critical`` (Student's t
-        quantile), ``batches``, ``bandwidth`` (Newey-West lags) and
-        ``consistent`` (``t`` beyond ``critical``).
+        Name -> {rival name -> test}; a test has ``lead`` (the rival's
+        held-out chi2 minus the lead's), ``sd`` (the lead's spread under the
+        residual's random part), ``t`` (lead / sd), ``critical`` (the normal
+        quantile) and ``consistent`` (``t`` beyond ``critical``).
     """
-    time = np.asarray(time, float)
-    d = np.asarray(loss_rival, float) - np.asarray(loss_lead, float)
-    batch = np.floor((time - time[0]) / LEAD_BATCH_S + 1e-9).astype(int)
-    sums = np.bincount(batch, d)
-    nb = sums.size
-    lead = float(d.sum())
-    if nb < 3:
-        return {"lead": lead, "t": 0.0, "critical": math.inf, "batches": nb, "bandwidth": 0, "consistent": False}
-    lags = int(math.floor(4.0 * (nb / 100.0) ** (2.0 / 9.0)))
-    c = sums - sums.mean()
-    lrv = float(c @ c) / nb + 2.0 * sum((1.0 - j / (lags + 1.0)) * float(c[j:] @ c[:-j]) / nb
-                                        for j in range(1, lags + 1))
-    if lrv > 0:
-        t = lead / math.sqrt(nb * lrv)
-    else:
-        t = math.inf if lead > 0 else 0.0
-    critical = float(stats.t.ppf(quantile, nb - 1))
-    return {"lead": lead, "t": float(t), "critical": critical, "batches": nb, "bandwidth": lags,
-            "consistent": bool(t > critical)}
+    critical = float(stats.norm.ppf(quantile))
+    weighted = {name: _weighted_signal(problem, residuals[name]) for name in order}
+    out = {}
+    for k, name in enumerate(order):
+        behind = order[k + 1:]
+        if not behind:
+            out[name] = {}
+            continue
+        z = weighted[name]
+        differences = np.stack([weighted[o] - z for o in behind])  # sqrt(W) (r_rival - r_lead)
+        projections = _surrogate_projections(z, differences, problem.dt, seed, n_surrogates)
+        out[name] = {}
+        for j, other in enumerate(behind):
+            lead = float((weighted[other] ** 2).sum() - (z**2).sum())
+            sd = 2.0 * float(np.std(projections[:, j]))
+            t = lead / sd if sd > 0 else (math.inf if lead > 0 else 0.0)
+            out[name][other] = {"lead": lead, "sd": sd, "t": float(t), "critical": critical,
+                                "consistent": bool(t > critical)}
+    return out
+
+
+def _surrogate_projections(z, directions, dt, seed, n_surrogates):
+    """``sum direction * n`` for surrogates ``n`` of the weighted residual z: (n_surrogates, k).
+
+    ``n = envelope * stationary``: the stationary part drawn from the
+    smoothed cross-spectrum of ``z / envelope``, the envelope each
+    channel's RMS over ``ENVELOPE_S``.
+    """
+    n_t = z.shape[0]
+    envelope = _envelope(z, dt)
+    chol = _spectral_factor(z / envelope)
+    rng = np.random.default_rng(seed)
+    weights = directions * envelope[None]
+    out = np.empty((n_surrogates, len(directions)))
+    for k in range(n_surrogates):
+        xi = (rng.normal(size=chol.shape[:2]) + 1j * rng.normal(size=chol.shape[:2])) / math.sqrt(2.0)
+        xi[0] = rng.normal(size=chol.shape[1])  # the mean and (even n) Nyquist terms are real
+        if n_t % 2 == 0:
+            xi[-1] = rng.normal(size=chol.shape[1])
+        stationary = np.fft.irfft(np.einsum("fij,fj->fi", chol, xi), n_t, axis=0)
+        out[k] = np.einsum("knc,nc->k", weights, stationary)
+    return out
+
+
+def _envelope(z, dt):
+    """Each channel's local RMS over ``ENVELOPE_S`` (n, c), floored at a thousandth of its whole RMS."""
+    size = max(1, int(round(ENVELOPE_S / dt)))
+    local = np.sqrt(uniform_filter1d(z * z, size, axis=0, mode="nearest"))
+    whole = np.sqrt(np.mean(z * z, axis=0))
+    return np.maximum(local, 1e-3 * whole[None, :] + 1e-300)

@@ -68,6 +68,7 @@ from ._scale import REFERENCE
 from ._trials import apply_to_trials, joined_states, stack_trials, trial_contexts
 
 __all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "ErrorDirections", "update_model", "robust_covariance", "joint_refit",
+           "rig_alone_channels",
            "model_error", "finer_discretization", "nuisance_correlation", "mark_model_error", "marginal_uncertainty"]
 
 # What a constant offset between a recorded channel and the model may
@@ -523,6 +524,18 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     return {"coords": coords, "mechanism": make_mechanism(mechanism.name, **{main: value}), "sim": fit.sim,
             "rig": rig, "maneuver": maneuver, "initial_state": state, "n_simulations": n_sims, "history": history,
             "offsets": offsets}
+
+
+def rig_alone_channels(ctx, joint):
+    """The channels of a joint refit's rig with its mechanism taken out (n, c), or None when that fails.
+
+    The joint refit moves the parameters on from where updating stopped,
+    with the mechanism's help; the rig it reaches without the mechanism is
+    what the parameters alone explain there (``_steps.credit_at_joint_rig``).
+    """
+    _init(dict(ctx, joint_mechanism=None))
+    sim, _ = _rig_job(np.asarray(joint["coords"], float), None, None, joint["initial_state"])
+    return sim
 
 
 def joint_value_bounds(value, value_range=None, span=JOINT_SPAN):
