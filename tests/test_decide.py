@@ -198,3 +198,56 @@ def test_a_best_candidate_must_explain_most_of_a_structured_mismatch_that_remain
         assert f"{100 * explained:.0f} %" in reason and "bucket.x in swing" in reason
     # with no structured mismatch left after it, the share it explained is not asked
     assert decide([best], THRESHOLD, STRUCTURED, [])[0] == "aero_drag"
+
+
+# ---------------------------------------------------------------- offsets that are another rig's
+
+def _offsets_state(offsets_left=None, scale=None, joint_offsets=None):
+    """The least a ``judge_offsets`` step reads: channels, their scale, the best model's offsets, the update's."""
+    from dragline.compare.diagnose._scale import MachineScale
+    from dragline.compare.diagnose._state import DiagnosisState, Recording
+
+    channels = ["bucket.x", "bucket.pitch", "hoist_rope.length"]
+    recording = Recording(time=np.arange(3.0), channels=channels, values=np.zeros((3, 3)), noise=np.ones(3),
+                          rate_hz=1.0, t_stop=1.0, stop_method="", offset=0.0, alignment={}, windows=[],
+                          lowpass_width=3, scale=scale or MachineScale())
+    base_eval = {"nuisance": (np.array([0.012, math.radians(1.0), 0.2]), 0.0, np.zeros(0))}
+    update = None if offsets_left is None else {"block": {"offsets_left": offsets_left}}
+    joints = {} if joint_offsets is None else {"pulley_friction": {"offsets": joint_offsets}}
+    after = None if joint_offsets is None else "pulley_friction"
+    scored = {} if after is None else {after: {"evaluation": base_eval}}
+    return DiagnosisState(measured=None, rig=None, maneuver=None, recording=recording, base_eval=base_eval,
+                          update=update, joints=joints, after_name=after, scored=scored)
+
+
+def test_offsets_beyond_calibration_accuracy_are_another_rig_without_tolerances():
+    from dragline.compare.diagnose._steps import OFFSET_LIMIT, judge_offsets
+
+    # No tolerances: the model's offsets are judged against the lab's calibration (10 mm, 2 deg); a rope
+    # length is not a pose and is never judged here (the reel table's check is).
+    state = judge_offsets(_offsets_state())
+    assert OFFSET_LIMIT["position"] == pytest.approx(0.010)
+    assert state.too_far == ["bucket.x"] and "bucket.x (+0.012)" in state.offsets_note
+    verdict, reason = decide([_hypothesis("pulley_friction", 900.0, 13.7, 1.1)], THRESHOLD, [], [],
+                             offsets_ok=not state.too_far, offsets_note=state.offsets_note)
+    assert verdict == "unexplained" and "geometry or the calibration differs" in reason
+
+
+def test_with_tolerances_only_offsets_five_times_beyond_calibration_are_another_rig():
+    from dragline.compare.diagnose._scale import MachineScale
+    from dragline.compare.diagnose._steps import DIFFERENT_RIG, judge_offsets
+
+    assert DIFFERENT_RIG == 5.0
+    # What the updated parameters leave: 45 mm is a finding, not another rig; 55 mm is.
+    near = {"bucket.x": 0.045, "bucket.pitch": math.radians(9.0), "hoist_rope.length": 1.0}
+    assert judge_offsets(_offsets_state(near)).too_far == []
+    far = dict(near, **{"bucket.x": 0.055})
+    assert judge_offsets(_offsets_state(far)).too_far == ["bucket.x"]
+    assert judge_offsets(_offsets_state(dict(near, **{"bucket.pitch": math.radians(10.5)}))).too_far == [
+        "bucket.pitch"]
+    # A named mechanism refitted jointly: its own offsets are judged (a rope held in a ring shifts the pose).
+    assert judge_offsets(_offsets_state(far, joint_offsets=near)).too_far == []
+    # A machine half the dragline's pendulum length: lengths judged at half the limit, angles as they are.
+    half = MachineScale(swing_hz=MachineScale().swing_hz * math.sqrt(2.0))
+    assert half.length == pytest.approx(0.5)
+    assert judge_offsets(_offsets_state(near, scale=half)).too_far == ["bucket.x"]

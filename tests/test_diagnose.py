@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from dragline.compare.diagnose._diagnose import diagnose, load_recording
-from dragline.compare.diagnose._hypotheses import Problem, null_threshold
+from dragline.compare.diagnose._hypotheses import MIN_IMPROVEMENT, Problem, null_threshold
 from dragline.compare.diagnose._locate import (
     low_pass,
     noise_level,
@@ -152,6 +152,13 @@ def test_surrogate_null_matches_independent_noise():
     assert truth > 0
     assert abs(np.mean(qs) / truth - 1) < 0.25
     assert all(0.5 < q / truth < 2.0 for q in qs)
+    # The threshold is the surrogates' quantile, floored at MIN_IMPROVEMENT: a residual 20 times the noise
+    # (its quantile 400 times as large) lifts it off the floor.
+    residual = rng.normal(0, 1, (n, c))
+    floored, q = null_threshold(problem, residual, [signature], seed=1, n_surrogates=1000)
+    assert q < MIN_IMPROVEMENT and floored == MIN_IMPROVEMENT
+    lifted, q20 = null_threshold(problem, 20 * residual, [signature], seed=1, n_surrogates=1000)
+    assert q20 == pytest.approx(400 * q, rel=1e-9) and lifted == q20 > MIN_IMPROVEMENT
 
 
 # ---------------------------------------------------------------- verdicts
