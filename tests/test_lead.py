@@ -98,3 +98,15 @@ def test_identical_residuals_lead_nowhere():
     z = np.random.default_rng(6).normal(size=(TIME.size, 2))
     test = lead_tests(_problem(), {"a": z, "b": z.copy()}, ["a", "b"])["a"]["b"]
     assert test["lead"] == 0.0 and test["sd"] == 0.0 and not test["consistent"]
+
+
+def test_the_held_out_residual_sums_to_the_held_out_score():
+    rng = np.random.default_rng(8)
+    measured = rng.normal(size=(TIME.size, 2)) + _signature()
+    measured[100:140, 1] = np.nan  # an unmeasured stretch
+    problem = Problem(TIME, measured, np.array([0.5, 2.0]), 8.0)
+    sim_a, sim_b = 0.9 * _signature(), 1.1 * _signature()
+    r = problem.held_out_residual(sim_a, sim_b)
+    assert np.all(r[100:140, 1] == 0.0)
+    assert float((problem.W * r * r).sum()) == pytest.approx(
+        problem.evaluate(sim_a)["AB"] + problem.evaluate(sim_b)["BA"], rel=1e-12)

@@ -361,7 +361,8 @@ class Problem:
 
     def held_out_residual(self, sim_a, sim_b):
         """Each sample's held-out residual (n, c, SI; 0 where unmeasured): fold B's with the fit on A (``sim_a``),
-        fold A's with the fit on B."""
+        fold A's with the fit on B. ``sum W r^2`` of it is ``evaluate``'s ``AB`` of ``sim_a`` plus ``BA`` of
+        ``sim_b``: a candidate's held-out score."""
         out = np.zeros(self.measured.shape)
         for sim, fit, held in ((sim_a, "A", "B"), (sim_b, "B", "A")):
             sim = np.asarray(sim, float)
@@ -370,15 +371,6 @@ class Problem:
             mask = self.folds[held]
             out[mask] = np.where(self.valid, r, 0.0)[mask]
         return out
-
-    def held_out_loss(self, sim_a, sim_b):
-        """Each sample's held-out chi2 (n,): fold B's with the fit on A (``sim_a``), fold A's with the fit on B.
-
-        Summed over samples it is ``evaluate``'s ``AB`` of ``sim_a`` plus
-        ``BA`` of ``sim_b``: a candidate's held-out score, sample by sample.
-        """
-        r = self.held_out_residual(sim_a, sim_b)
-        return (self.W * r * r).sum(1)
 
 
 # ---------------------------------------------------------------- simulation workers
