@@ -275,7 +275,8 @@ def diagnosis_of(state):
                      "resolved_hz": RESOLVED_HZ, "resolved_min": RESOLVED_MIN},
         "executor": as_executor(state.workers).describe(),
         "timing": {"seconds": _time.perf_counter() - state.started,
-                   "simulations": 1 + sum(h["n_simulations"] for h in state.hypotheses)
+                   "simulations": 1 + sum(h["n_simulations"] + h.get("credit_at_joint_rig", {}).get("n_simulations", 0)
+                                          for h in state.hypotheses)
                    + (second["n_simulations"] if second else 0) + state.model_error_sims
                    + (update["n_simulations"] if update else 0)},
     }
