@@ -705,11 +705,7 @@ def null_threshold(problem, residual, signatures, seed=0, n_surrogates=NULL_SURR
     n_t = z.shape[0]
     best = np.empty(n_surrogates)
     for k in range(n_surrogates):
-        xi = (rng.normal(size=chol.shape[:2]) + 1j * rng.normal(size=chol.shape[:2])) / math.sqrt(2.0)
-        xi[0] = rng.normal(size=chol.shape[1])  # the mean and (even n) Nyquist terms are real
-        if n_t % 2 == 0:
-            xi[-1] = rng.normal(size=chol.shape[1])
-        n = np.fft.irfft(np.einsum("fij,fj->fi", chol, xi), n_t, axis=0)
+        n = surrogate(chol, n_t, rng)
         gnA = np.einsum("knc,nc->k", g[:, A], n[A])
         gnB = np.einsum("knc,nc->k", g[:, B], n[B])
         aA = np.maximum(gnA / np.maximum(gAA, 1e-300), 0.0)
@@ -718,6 +714,16 @@ def null_threshold(problem, residual, signatures, seed=0, n_surrogates=NULL_SURR
         best[k] = d.max()
     q = float(np.quantile(best, NULL_QUANTILE))
     return max(q, MIN_IMPROVEMENT), q
+
+
+def surrogate(chol, n_t, rng):
+    """One Gaussian surrogate (n_t, c) with the cross-spectrum whose Cholesky factors are ``chol``
+    (``_spectral_factor``)."""
+    xi = (rng.normal(size=chol.shape[:2]) + 1j * rng.normal(size=chol.shape[:2])) / math.sqrt(2.0)
+    xi[0] = rng.normal(size=chol.shape[1])  # the mean and (even n) Nyquist terms are real
+    if n_t % 2 == 0:
+        xi[-1] = rng.normal(size=chol.shape[1])
+    return np.fft.irfft(np.einsum("fij,fj->fi", chol, xi), n_t, axis=0)
 
 
 def _spectral_factor(z):

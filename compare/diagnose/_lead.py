@@ -36,7 +36,7 @@ import numpy as np
 from scipy import stats
 from scipy.ndimage import uniform_filter1d
 
-from ._hypotheses import BLOCK_S, NULL_QUANTILE, NULL_SURROGATES, _spectral_factor, _weighted_signal
+from ._hypotheses import BLOCK_S, NULL_QUANTILE, NULL_SURROGATES, _spectral_factor, _weighted_signal, surrogate
 
 __all__ = ["lead_tests", "ENVELOPE_S"]
 
@@ -101,12 +101,7 @@ def _surrogate_projections(z, directions, dt, seed, n_surrogates):
     weights = directions * envelope[None]
     out = np.empty((n_surrogates, len(directions)))
     for k in range(n_surrogates):
-        xi = (rng.normal(size=chol.shape[:2]) + 1j * rng.normal(size=chol.shape[:2])) / math.sqrt(2.0)
-        xi[0] = rng.normal(size=chol.shape[1])  # the mean and (even n) Nyquist terms are real
-        if n_t % 2 == 0:
-            xi[-1] = rng.normal(size=chol.shape[1])
-        stationary = np.fft.irfft(np.einsum("fij,fj->fi", chol, xi), n_t, axis=0)
-        out[k] = np.einsum("knc,nc->k", weights, stationary)
+        out[k] = np.einsum("knc,nc->k", weights, surrogate(chol, n_t, rng))
     return out
 
 
