@@ -21,9 +21,10 @@ import shutil
 import tempfile
 
 from dragline.compare import detection_thresholds
-from ._discovery import THRESHOLD_MULTIPLES, TRUTH_DISCRETIZATION
 from dragline.lab import lab_for_rig, synthesize_session, write_session_dir
 from dragline.simulate import MECHANISMS, default_maneuver, load_rig, marker_positions, simulate
+
+from ._discovery import THRESHOLD_MULTIPLES, TRUTH_DISCRETIZATION
 
 __all__ = ["DETECTION_SEED", "bench_detection", "summary_lines"]
 
