@@ -137,6 +137,42 @@ def test_a_mechanism_signature_is_compared_with_every_parameter(updated):
     assert own["parameter"] == updated["params"][0].name and own["correlation"] == pytest.approx(1.0)
 
 
+def test_updating_taken_up_again_from_a_better_rig_reaches_the_full_fit(updated, monkeypatch):
+    """Updating capped after its first step stops short; taken up again from a rig nearer the truth (as a
+    joint refit reaches one), it goes on to what uncapped updating reached; from a rig that fits worse than
+    where it stopped it is not taken up."""
+    from dragline.compare.diagnose import _updating
+    from dragline.compare.diagnose._updating import resume_update
+
+    problem, ctx, params, truth = updated["problem"], updated["ctx"], updated["params"], updated["truth"]
+    full = updated["result"]
+    monkeypatch.setattr(_updating, "MAX_JACOBIANS", 2)
+    short = update_model(problem, ctx, updated["nominal_sim"], updated["directions"], workers=2)
+    monkeypatch.undo()
+
+    def chi2(update):
+        return update["block"]["iterations"][-1]["chi2"]
+
+    def joint_at(coords):
+        rig, maneuver = apply_parameters(ctx["rig"], ctx["maneuver"], params, coords)
+        return {"coords": coords, "rig": rig, "maneuver": maneuver, "initial_state": short["initial_state"]}
+
+    assert chi2(short) > 1.5 * chi2(full)  # the cap did stop it short
+    resumed = resume_update(problem, ctx, updated["nominal_sim"], short, joint_at(0.5 * (short["coords"] + truth)),
+                            workers=2)
+    assert resumed is not None
+    again, directions, block = resumed
+    assert chi2(again) < 1.05 * chi2(full)
+    assert block["rig"] == "joint rig without its mechanism" and len(directions) == 2
+    tol = np.array([p.tolerance for p in params])
+    moved = [i for i, p in enumerate(params) if p.name != "ropes.chain.viscous_damping"]
+    assert np.all(np.abs(again["coords"] - truth)[moved] < 0.15 * tol[moved])
+    # Its simulations count on from the capped run's: one at the joint rig, its sensitivities, the steps.
+    assert again["n_simulations"] > short["n_simulations"] + 1 + len(short["active"])
+    farther = 2.0 * short["coords"] - truth
+    assert resume_update(problem, ctx, updated["nominal_sim"], short, joint_at(farther), workers=2) is None
+
+
 def test_the_share_a_parameter_change_reproduces_is_one_for_a_mix_of_sensitivities(updated):
     problem, result = updated["problem"], updated["result"]
     sens = result["sensitivities"]

@@ -247,6 +247,7 @@ def diagnosis_of(state):
                            "entries": state.structured_after[:MAX_MISMATCH_ENTRIES]},
         "hypotheses": state.hypotheses,
         "second_mechanism": second,
+        "updated_again": state.superseded,
         "skipped": state.skipped,
         "free_decay": decay,
         "metrics": metrics,
@@ -278,7 +279,8 @@ def diagnosis_of(state):
                    "simulations": 1 + sum(h["n_simulations"] + h.get("credit_at_joint_rig", {}).get("n_simulations", 0)
                                           for h in state.hypotheses)
                    + (second["n_simulations"] if second else 0) + state.model_error_sims
-                   + (update["n_simulations"] if update else 0)},
+                   + (update["n_simulations"] if update else 0)
+                   + (state.superseded["n_simulations"] if state.superseded else 0)},
     }
     return Diagnosis(doc=json_ready(doc), time=time, channels=channels, measured=measured, nominal=nominal,
                      updated=updated, fitted=dict(state.fitted_series),

@@ -138,6 +138,8 @@ class DiagnosisState:
     hypotheses: list = field(default_factory=list)
     fitted_series: dict = field(default_factory=dict)
     residuals: dict = field(default_factory=dict)
+    # update_again: the first round (its lead, credit, chi2 before and after, simulations) when updating resumed
+    superseded: dict | None = None
     # locate_after, judge_offsets, decide_verdict, test_second_mechanism
     after_name: str | None = None
     located_after: list = field(default_factory=list)

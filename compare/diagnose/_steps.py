@@ -73,6 +73,7 @@ from ._updating import (
     model_error,
     nuisance_correlation,
     parameter_span_share,
+    resume_update,
     rig_alone_channels,
     update_model,
 )
@@ -307,6 +308,13 @@ def update_rig(state):
         update["sim"], workers=workers)
     block["rig"] = "updated"
     update = update_model(problem, ctx, state.nominal_sim, directions, workers=workers, progress=note, start=update)
+    return _with_update(state, update, directions, block, model_error_sims=4)
+
+
+def _with_update(state, update, directions, block, model_error_sims):
+    """The state with ``update`` as the model the mechanisms are fitted on: its linearised parameter freedom
+    (prior centred on the nominal rig) and the model's own error as regressors."""
+    problem, ctx = state.plain_problem, state.nominal_ctx
     tol = np.array([p.tolerance for p in ctx["parameters"]])
     updated_problem = problem.with_regressors(
         [*update["sensitivities"], *directions],
@@ -318,7 +326,7 @@ def update_rig(state):
                    ctx=dict(ctx, rig=update["rig"], maneuver=update["maneuver"],
                             initial_state=update["initial_state"]),
                    base_sim=update["sim"], update=update, error_directions=directions, model_error_block=block,
-                   model_error_sims=4)
+                   model_error_sims=model_error_sims)
 
 
 def locate_updated(state):
@@ -647,6 +655,44 @@ def credit_at_joint_rig(state):
     return replace(state, hypotheses=hypotheses)
 
 
+def update_again(state):
+    """Updating taken up again from the best candidate's joint rig when its credit there fails, and the
+    candidates' steps run anew on the rig it reaches (once).
+
+    A credit below the threshold (``_decide`` rule 3b) says the joint
+    refit's gain was the parameters' moving on from where updating stopped:
+    the rig alone there fits better than the updated one. Every candidate
+    was then fitted on a rig short of the recording's best, and its
+    improvement holds what the parameters could still have taken up. On
+    the trusted-verdict set's seed 92 the rig alone at the joint point
+    fitted 5.6 to 18 times better (held-out chi2) than the updated rig in
+    the four cases this rule read "unexplained" (three with nothing added,
+    one with bending damping at twice its threshold). Updating resumes from
+    there (``resume_update``); the first round is kept in ``superseded``.
+    """
+    best = next((h for h in state.hypotheses if "credit_at_joint_rig" in h), None)
+    if (state.superseded is not None or best is None
+            or not best["credit_at_joint_rig"]["credit"] < state.null.threshold):
+        return state
+    resumed = resume_update(state.plain_problem, state.nominal_ctx, state.nominal_sim, state.update,
+                            state.joints[best["name"]], workers=state.workers, progress=state.note)
+    if resumed is None:
+        return state
+    update, directions, block = resumed
+    first = {"lead": best["name"], "improvement": best["improvement"],
+             "credit_at_joint_rig": best["credit_at_joint_rig"]["credit"], "threshold": state.null.threshold,
+             "chi2_updated": state.update["block"]["iterations"][-1]["chi2"],
+             "chi2_updated_again": update["block"]["iterations"][-1]["chi2"],
+             "n_simulations": sum(h["n_simulations"] + h.get("credit_at_joint_rig", {}).get("n_simulations", 0)
+                                  for h in state.hypotheses)}
+    again = _with_update(replace(state, superseded=first), update, directions, block,
+                         model_error_sims=state.model_error_sims + 2)
+    for step in (locate_updated, fit_mechanisms, refit_jointly, test_against_noise, refit_rivals, score_hypotheses,
+                 credit_at_joint_rig):
+        again = step(again)
+    return again
+
+
 def locate_after(state):
     """What the best significant candidate leaves (the updated model's own when none is)."""
     significant = [h for h in state.hypotheses if h["significant"]]
@@ -708,6 +754,11 @@ def decide_verdict(state):
     if findings and not state.too_far:
         reason += ("; finding: constant offsets no parameter within tolerance explains on "
                    + ", ".join(f"{c} ({left[c]:+.3g})" for c in findings))
+    first = state.superseded
+    if first is not None:
+        reason += (f"; updating had stopped short: {first['lead']}'s joint rig fitted better without it, so "
+                   f"updating was taken up again from there (chi2 {first['chi2_updated']:.4g} -> "
+                   f"{first['chi2_updated_again']:.4g}) and every candidate fitted anew on that rig")
     return replace(state, verdict=verdict, reason=reason)
 
 
@@ -768,5 +819,5 @@ def predict_held_out(state):
 
 
 STEPS = (align_recording, locate_nominal, update_rig, locate_updated, fit_mechanisms, refit_jointly,
-         test_against_noise, refit_rivals, score_hypotheses, credit_at_joint_rig, locate_after, judge_offsets,
-         decide_verdict, test_second_mechanism, predict_held_out)
+         test_against_noise, refit_rivals, score_hypotheses, credit_at_joint_rig, update_again, locate_after,
+         judge_offsets, decide_verdict, test_second_mechanism, predict_held_out)

@@ -68,7 +68,7 @@ from ._scale import REFERENCE
 from ._trials import apply_to_trials, joined_states, stack_trials, trial_contexts
 
 __all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "ErrorDirections", "update_model", "robust_covariance", "joint_refit",
-           "rig_alone_channels",
+           "rig_alone_channels", "resume_update",
            "model_error", "finer_discretization", "nuisance_correlation", "mark_model_error", "marginal_uncertainty"]
 
 # What a constant offset between a recorded channel and the model may
@@ -536,6 +536,69 @@ def rig_alone_channels(ctx, joint):
     _init(dict(ctx, joint_mechanism=None))
     sim, _ = _rig_job(np.asarray(joint["coords"], float), None, None, joint["initial_state"])
     return sim
+
+
+def resume_update(problem, ctx, nominal_sim, update, joint, workers=2, progress=None):
+    """Updating taken up again from a joint refit's rig with its mechanism out, where that rig fits better.
+
+    A joint refit moves the parameters on with the mechanism's help; when
+    the rig it reaches fits the recording better without the mechanism than
+    the updated rig did, updating had stopped short (its Jacobian cap, or a
+    predicted gain below its stop along a valley where masses and
+    stiffness trade). From there, as ``update_rig`` does from the nominal
+    rig: the model's own error estimated at that rig, its sensitivities
+    taken there, and the trust region run again.
+
+    Parameters
+    ----------
+    problem : Problem
+        The recording (without regressors).
+    ctx : dict
+        The nominal simulation context.
+    nominal_sim : ndarray (n, c)
+    update : dict
+        ``update_model``'s result.
+    joint : dict
+        ``joint_refit``'s result.
+    workers : int
+    progress : callable, optional
+
+    Returns
+    -------
+    tuple or None
+        ``(update, error_directions, model_error_block)``, the update's
+        ``n_simulations`` counting the ones run here; None when the joint
+        rig without its mechanism cannot be simulated or fits no better
+        than the updated rig (objective with its priors).
+    """
+    note = progress or (lambda msg: None)
+    params = list(ctx["parameters"])
+    tol = np.array([p.tolerance for p in params])
+    coords = np.asarray(joint["coords"], float)
+    _init(ctx)
+    sim, state = _rig_job(coords, None, None, joint["initial_state"])
+    if sim is None:
+        return None
+    at_joint = dict(ctx, rig=joint["rig"], maneuver=joint["maneuver"], initial_state=state)
+    directions, block = model_error(problem, at_joint, sim, workers=workers)
+    offset_sd = _offset_prior(ctx)
+    there = _objective_at(problem, sim, coords, tol, offset_sd, directions)[0]
+    here = _objective_at(problem, update["sim"], update["coords"], tol, offset_sd, directions)[0]
+    if not there < here:
+        return None
+    note(f"updating again from the joint rig (objective {here:.4g} -> {there:.4g} without the mechanism)")
+    _init(ctx)
+    pool = _pool(workers, ctx)
+    try:
+        sens, failed = _sensitivities(pool, coords, update["active"], tol, sim, state, update["sensitivities"])
+    finally:
+        pool.close()
+    start = dict(update, coords=coords, sim=sim, initial_state=state, sensitivities=sens,
+                 failed=sorted(set(update["failed"]) | set(failed)),
+                 n_simulations=update["n_simulations"] + 1 + len(update["active"]))
+    block["rig"] = "joint rig without its mechanism"
+    return update_model(problem, ctx, nominal_sim, directions, workers=workers, progress=note, start=start), \
+        directions, block
 
 
 def joint_value_bounds(value, value_range=None, span=JOINT_SPAN):
