@@ -129,6 +129,31 @@ def test_a_candidate_is_credited_only_with_what_it_adds_at_its_own_joint_rig():
     assert verdict == "pulley_inertia"
 
 
+def test_updating_is_taken_up_again_only_where_the_credit_fails_and_only_once():
+    # ``update_again`` resumes updating (simulations: tests/test_updating.py) when the best candidate's
+    # credit at its joint rig is below the threshold; where it holds, where none was taken, or once it has
+    # run, the state passes through untouched (no simulation is asked for: these states hold no recording).
+    from dragline.compare.diagnose._state import DiagnosisState, NullTest
+    from dragline.compare.diagnose._steps import update_again
+
+    null = NullTest(threshold=THRESHOLD, noise_threshold=THRESHOLD, surrogate_quantile=0.0, kappa=1.0,
+                    allowance=0.0, excess=0.0, share=0.0, own_error=0.0)
+    best = _hypothesis("chain_link_friction", 40 * THRESHOLD, 11.9, 2.1)
+    held = {"with": 1.0e5, "without": 1.0e5 + 3.0 * THRESHOLD, "credit": 3.0 * THRESHOLD, "n_simulations": 1}
+
+    def state(credit=None, superseded=None):
+        h = best if credit is None else dict(best, credit_at_joint_rig=dict(held, credit=credit))
+        return DiagnosisState(measured=None, rig=None, maneuver=None, null=null, hypotheses=[h],
+                              superseded=superseded)
+
+    for passing in (state(), state(credit=3.0 * THRESHOLD), state(credit=THRESHOLD),
+                    state(credit=-5.0 * THRESHOLD, superseded={"lead": "pulley_inertia"})):
+        assert update_again(passing) is passing
+    # A failed credit goes on to the joint rig it was credited at, which this state does not hold.
+    with pytest.raises(KeyError, match="chain_link_friction"):
+        update_again(state(credit=-5.0 * THRESHOLD))
+
+
 def test_a_joint_refit_searches_within_the_candidates_range():
     lo, hi = joint_value_bounds(0.012, (0.01, 1.0))
     assert lo == pytest.approx(math.log(0.01)) and hi == pytest.approx(math.log(0.012) + JOINT_SPAN)
