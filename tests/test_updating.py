@@ -158,19 +158,22 @@ def test_updating_taken_up_again_from_a_better_rig_reaches_the_full_fit(updated,
         return {"coords": coords, "rig": rig, "maneuver": maneuver, "initial_state": short["initial_state"]}
 
     assert chi2(short) > 1.5 * chi2(full)  # the cap did stop it short
+    directions = updated["directions"]
     resumed = resume_update(problem, ctx, updated["nominal_sim"], short, joint_at(0.5 * (short["coords"] + truth)),
-                            workers=2)
-    assert resumed is not None
-    again, directions, block = resumed
+                            directions, workers=2)
+    again = resumed["update"]
+    assert resumed["objective_joint_rig"] < resumed["objective_updated"]
     assert chi2(again) < 1.05 * chi2(full)
-    assert block["rig"] == "joint rig without its mechanism" and len(directions) == 2
+    assert resumed["model_error"]["rig"] == "joint rig without its mechanism"
+    assert len(resumed["error_directions"]) == 2
     tol = np.array([p.tolerance for p in params])
     moved = [i for i, p in enumerate(params) if p.name != "ropes.chain.viscous_damping"]
     assert np.all(np.abs(again["coords"] - truth)[moved] < 0.15 * tol[moved])
     # Its simulations count on from the capped run's: one at the joint rig, its sensitivities, the steps.
     assert again["n_simulations"] > short["n_simulations"] + 1 + len(short["active"])
     farther = 2.0 * short["coords"] - truth
-    assert resume_update(problem, ctx, updated["nominal_sim"], short, joint_at(farther), workers=2) is None
+    declined = resume_update(problem, ctx, updated["nominal_sim"], short, joint_at(farther), directions, workers=2)
+    assert declined["update"] is None and declined["objective_joint_rig"] > declined["objective_updated"]
 
 
 def test_the_share_a_parameter_change_reproduces_is_one_for_a_mix_of_sensitivities(updated):

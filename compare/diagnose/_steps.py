@@ -668,25 +668,31 @@ def update_again(state):
     fitted 5.6 to 18 times better (held-out chi2) than the updated rig in
     the four cases this rule read "unexplained" (three with nothing added,
     one with bending damping at twice its threshold). Updating resumes from
-    there (``resume_update``); the first round is kept in ``superseded``.
+    there (``resume_update``); the first round is kept in ``superseded``
+    (with ``taken_up`` False, and nothing run again, where the joint rig
+    alone fits no better than the updated one).
     """
     best = next((h for h in state.hypotheses if "credit_at_joint_rig" in h), None)
     if (state.superseded is not None or best is None
             or not best["credit_at_joint_rig"]["credit"] < state.null.threshold):
         return state
     resumed = resume_update(state.plain_problem, state.nominal_ctx, state.nominal_sim, state.update,
-                            state.joints[best["name"]], workers=state.workers, progress=state.note)
-    if resumed is None:
-        return state
-    update, directions, block = resumed
+                            state.joints[best["name"]], state.error_directions, workers=state.workers,
+                            progress=state.note)
+    update = resumed["update"]
     first = {"lead": best["name"], "improvement": best["improvement"],
              "credit_at_joint_rig": best["credit_at_joint_rig"]["credit"], "threshold": state.null.threshold,
-             "chi2_updated": state.update["block"]["iterations"][-1]["chi2"],
-             "chi2_updated_again": update["block"]["iterations"][-1]["chi2"],
-             "n_simulations": sum(h["n_simulations"] + h.get("credit_at_joint_rig", {}).get("n_simulations", 0)
-                                  for h in state.hypotheses)}
-    again = _with_update(replace(state, superseded=first), update, directions, block,
-                         model_error_sims=state.model_error_sims + 2)
+             "objective_updated": resumed["objective_updated"],
+             "objective_joint_rig": resumed["objective_joint_rig"], "taken_up": update is not None,
+             "chi2_updated": state.update["block"]["iterations"][-1]["chi2"]}
+    if update is None:
+        # The joint rig alone fits no better: nothing to resume from; its one simulation is counted here.
+        return replace(state, superseded=dict(first, n_simulations=1))
+    first.update(chi2_updated_again=update["block"]["iterations"][-1]["chi2"],
+                 n_simulations=sum(h["n_simulations"] + h.get("credit_at_joint_rig", {}).get("n_simulations", 0)
+                                   for h in state.hypotheses))
+    again = _with_update(replace(state, superseded=first), update, resumed["error_directions"],
+                         resumed["model_error"], model_error_sims=state.model_error_sims + 2)
     for step in (locate_updated, fit_mechanisms, refit_jointly, test_against_noise, refit_rivals, score_hypotheses,
                  credit_at_joint_rig):
         again = step(again)
@@ -755,7 +761,7 @@ def decide_verdict(state):
         reason += ("; finding: constant offsets no parameter within tolerance explains on "
                    + ", ".join(f"{c} ({left[c]:+.3g})" for c in findings))
     first = state.superseded
-    if first is not None:
+    if first is not None and first["taken_up"]:
         reason += (f"; updating had stopped short: {first['lead']}'s joint rig fitted better without it, so "
                    f"updating was taken up again from there (chi2 {first['chi2_updated']:.4g} -> "
                    f"{first['chi2_updated_again']:.4g}) and every candidate fitted anew on that rig")

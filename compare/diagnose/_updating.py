@@ -538,7 +538,7 @@ def rig_alone_channels(ctx, joint):
     return sim
 
 
-def resume_update(problem, ctx, nominal_sim, update, joint, workers=2, progress=None):
+def resume_update(problem, ctx, nominal_sim, update, joint, error_directions=(), workers=2, progress=None):
     """Updating taken up again from a joint refit's rig with its mechanism out, where that rig fits better.
 
     A joint refit moves the parameters on with the mechanism's help; when
@@ -560,33 +560,38 @@ def resume_update(problem, ctx, nominal_sim, update, joint, workers=2, progress=
         ``update_model``'s result.
     joint : dict
         ``joint_refit``'s result.
+    error_directions : ErrorDirections
+        The model's own error at the updated rig: fitted with both rigs when
+        they are compared.
     workers : int
     progress : callable, optional
 
     Returns
     -------
-    tuple or None
-        ``(update, error_directions, model_error_block)``, the update's
-        ``n_simulations`` counting the ones run here; None when the joint
-        rig without its mechanism cannot be simulated or fits no better
-        than the updated rig (objective with its priors).
+    dict
+        ``objective_updated`` and ``objective_joint_rig`` (chi2 with the
+        priors), ``update`` (None when the joint rig without its mechanism
+        cannot be simulated or fits no better), and with an update its
+        ``error_directions`` and ``model_error`` block (two simulations:
+        the caller counts them) and its ``n_simulations`` counting on from
+        ``update``'s, the comparison's one simulation included.
     """
     note = progress or (lambda msg: None)
     params = list(ctx["parameters"])
     tol = np.array([p.tolerance for p in params])
     coords = np.asarray(joint["coords"], float)
+    offset_sd = _offset_prior(ctx)
     _init(ctx)
     sim, state = _rig_job(coords, None, None, joint["initial_state"])
-    if sim is None:
-        return None
+    here = _objective_at(problem, update["sim"], update["coords"], tol, offset_sd, error_directions)[0]
+    there = math.inf if sim is None else _objective_at(problem, sim, coords, tol, offset_sd, error_directions)[0]
+    out = {"objective_updated": here, "objective_joint_rig": there, "update": None}
+    if not there < here:
+        return out
+    note(f"updating again from the joint rig (objective {here:.4g} -> {there:.4g} without the mechanism)")
     at_joint = dict(ctx, rig=joint["rig"], maneuver=joint["maneuver"], initial_state=state)
     directions, block = model_error(problem, at_joint, sim, workers=workers)
-    offset_sd = _offset_prior(ctx)
-    there = _objective_at(problem, sim, coords, tol, offset_sd, directions)[0]
-    here = _objective_at(problem, update["sim"], update["coords"], tol, offset_sd, directions)[0]
-    if not there < here:
-        return None
-    note(f"updating again from the joint rig (objective {here:.4g} -> {there:.4g} without the mechanism)")
+    block["rig"] = "joint rig without its mechanism"
     _init(ctx)
     pool = _pool(workers, ctx)
     try:
@@ -596,9 +601,10 @@ def resume_update(problem, ctx, nominal_sim, update, joint, workers=2, progress=
     start = dict(update, coords=coords, sim=sim, initial_state=state, sensitivities=sens,
                  failed=sorted(set(update["failed"]) | set(failed)),
                  n_simulations=update["n_simulations"] + 1 + len(update["active"]))
-    block["rig"] = "joint rig without its mechanism"
-    return update_model(problem, ctx, nominal_sim, directions, workers=workers, progress=note, start=start), \
-        directions, block
+    out.update(update=update_model(problem, ctx, nominal_sim, directions, workers=workers, progress=note,
+                                   start=start),
+               error_directions=directions, model_error=block)
+    return out
 
 
 def joint_value_bounds(value, value_range=None, span=JOINT_SPAN):
