@@ -170,6 +170,21 @@ def test_local_workers_and_their_parent_run_one_blas_thread_while_the_pool_is_op
         assert _blas_threads() == 2  # given back when the pool closes
 
 
+def test_one_local_worker_runs_in_this_process_with_one_blas_thread_while_open():
+    # As a pool's parent and workers do: a diagnosis's own linear algebra the same whatever ``workers``.
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(2, user_api="blas"):
+        session = LocalExecutor(1).open(_blas_threads, ())
+        try:
+            inside = _blas_threads()
+            tasks = session.map(_blas_threads, [(i,) for i in range(3)])
+        finally:
+            session.close()
+        assert inside == 1 and tasks == [1, 1, 1]
+        assert _blas_threads() == 2  # given back when the session closes
+
+
 def test_refining_searches_side_by_side_evaluate_what_one_per_worker_does(cluster, context):
     # Three searches on two workers: run as threads that hand single simulations to the pool, they
     # must evaluate exactly the points each search evaluates alone in one process.
