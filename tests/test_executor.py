@@ -152,36 +152,23 @@ def _blas_threads(*_):
     return max(lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas")
 
 
-def test_local_workers_and_their_parent_run_one_blas_thread_while_the_pool_is_open():
-    # Every core has a worker: BLAS threads could only oversubscribe them.
+@pytest.mark.parametrize("workers", [1, 2])
+def test_local_workers_and_their_parent_run_one_blas_thread_while_open(workers):
+    # A pool: every core has a worker, so BLAS threads could only oversubscribe them. One worker runs in
+    # this process, held alike: a diagnosis's own linear algebra the same whatever ``workers``.
     from threadpoolctl import threadpool_limits
 
-    if (os.cpu_count() or 1) < 2:
+    if workers > (os.cpu_count() or 1):
         pytest.skip("one core: the local executor runs in this process, without a pool")
 
     with threadpool_limits(2, user_api="blas"):  # as a 2-core machine starts
-        session = LocalExecutor(2).open(_blas_threads, ())
+        session = LocalExecutor(workers).open(_blas_threads, ())
         try:
             inside = _blas_threads()
-            workers = session.map(_blas_threads, [(i,) for i in range(4)])
+            tasks = session.map(_blas_threads, [(i,) for i in range(4)])
         finally:
             session.close()
-        assert inside == 1 and workers == [1, 1, 1, 1]
-        assert _blas_threads() == 2  # given back when the pool closes
-
-
-def test_one_local_worker_runs_in_this_process_with_one_blas_thread_while_open():
-    # As a pool's parent and workers do: a diagnosis's own linear algebra the same whatever ``workers``.
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(2, user_api="blas"):
-        session = LocalExecutor(1).open(_blas_threads, ())
-        try:
-            inside = _blas_threads()
-            tasks = session.map(_blas_threads, [(i,) for i in range(3)])
-        finally:
-            session.close()
-        assert inside == 1 and tasks == [1, 1, 1]
+        assert inside == 1 and tasks == [1, 1, 1, 1]
         assert _blas_threads() == 2  # given back when the session closes
 
 

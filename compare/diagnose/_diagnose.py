@@ -33,7 +33,7 @@ from ._leave_one_out import leave_one_out as _leave_one_out
 from ._locate import LOWPASS_S, structure_threshold
 from ._recording import load_recording
 from ._state import DiagnosisState
-from ._steps import STEPS
+from ._steps import STEPS, hypotheses_simulations
 from ._trials import SEPARATOR, split_channel
 from ._summary import before_after_metrics, calibration_doc, free_decay_section, report_channels
 
@@ -276,8 +276,7 @@ def diagnosis_of(state):
                      "resolved_hz": RESOLVED_HZ, "resolved_min": RESOLVED_MIN},
         "executor": as_executor(state.workers).describe(),
         "timing": {"seconds": _time.perf_counter() - state.started,
-                   "simulations": 1 + sum(h["n_simulations"] + h.get("credit_at_joint_rig", {}).get("n_simulations", 0)
-                                          for h in state.hypotheses)
+                   "simulations": 1 + hypotheses_simulations(state.hypotheses)
                    + (second["n_simulations"] if second else 0) + state.model_error_sims
                    + (update["n_simulations"] if update else 0)
                    + (state.superseded["n_simulations"] if state.superseded else 0)},

@@ -655,6 +655,11 @@ def credit_at_joint_rig(state):
     return replace(state, hypotheses=hypotheses)
 
 
+def hypotheses_simulations(hypotheses):
+    """The simulations the candidates' fits and their credits at a joint rig ran."""
+    return sum(h["n_simulations"] + h.get("credit_at_joint_rig", {}).get("n_simulations", 0) for h in hypotheses)
+
+
 def update_again(state):
     """Updating taken up again from the best candidate's joint rig when its credit there fails, and the
     candidates' steps run anew on the rig it reaches (once).
@@ -689,8 +694,7 @@ def update_again(state):
         # The joint rig alone fits no better: nothing to resume from; its one simulation is counted here.
         return replace(state, superseded=dict(first, n_simulations=1))
     first.update(chi2_updated_again=update["block"]["iterations"][-1]["chi2"],
-                 n_simulations=sum(h["n_simulations"] + h.get("credit_at_joint_rig", {}).get("n_simulations", 0)
-                                   for h in state.hypotheses))
+                 n_simulations=hypotheses_simulations(state.hypotheses))
     again = _with_update(replace(state, superseded=first), update, resumed["error_directions"],
                          resumed["model_error"], model_error_sims=state.model_error_sims + 2)
     for step in (locate_updated, fit_mechanisms, refit_jointly, test_against_noise, refit_rivals, score_hypotheses,
