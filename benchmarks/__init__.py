@@ -22,6 +22,8 @@ measure what a user's code would get.
   built-in machine
 - ``bench_sensitivities`` (``sensitivities_summary_lines``): the states'
   Jacobian from the scheme's tangent against finite differences, timed
+- ``calibrate_decisions`` (``decisions_command``): the verdict's
+  constants calibrated on kept diagnoses of earlier trusted-verdict runs
 - ``bench_real`` (``real_command``): real slung-load flights, each
   predicted by a diagnosis fitted on all the others together
 
@@ -49,6 +51,9 @@ _EXPORTS = {
     "discovery_summary_lines": ("_discovery", "summary_lines"),
     "bench_sensitivities": ("_sensitivities", "bench_sensitivities"),
     "sensitivities_summary_lines": ("_sensitivities", "summary_lines"),
+    "calibrate_decisions": ("_decisions", "calibrate_decisions"),
+    "decision_records": ("_decisions", "decision_records"),
+    "decisions_command": ("_decisions", "bench_command"),
     "bench_real": ("_real", "bench_real"),
     "real_command": ("_real", "bench_command"),
 }

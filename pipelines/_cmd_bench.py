@@ -38,6 +38,8 @@ def add_parser(sub):
                    help="real: the flights' folder (the Stormlord repository's data_combined_system)")
     p.add_argument("--figure", metavar="FILE.png",
                    help="real: the first flight left out, drawn against each model's prediction")
+    p.add_argument("--records", metavar="FILE", nargs="+",
+                   help="decisions: calibration records (default: the committed seeds 92 and 94)")
     p.add_argument("--keep-diagnoses", metavar="DIR",
                    help="discovery: keep every case's diagnosis.json in DIR (case<seed>.json)")
 
@@ -99,6 +101,15 @@ def _sensitivities(args):
     return report, sensitivities_summary_lines(report)
 
 
+def _decisions(args):
+    from dragline.benchmarks import decisions_command
+
+    for path in args.records or ():
+        if not os.path.isfile(path):
+            raise ValueError(f"{path}: no such records file")
+    return decisions_command(args)
+
+
 def _real(args):
     from dragline.benchmarks import real_command
 
@@ -106,7 +117,8 @@ def _real(args):
 
 
 BENCHES = {"simulate": _simulate, "capture": _capture, "reconstruct": _reconstruct, "triangulation": _triangulation,
-           "diagnosis": _diagnosis, "detection": _detection, "discovery": _discovery, "real": _real, "sensitivities": _sensitivities}
+           "diagnosis": _diagnosis, "detection": _detection, "discovery": _discovery, "real": _real, "sensitivities": _sensitivities,
+           "decisions": _decisions}
 
 
 def run(args):

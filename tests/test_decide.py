@@ -129,29 +129,51 @@ def test_a_candidate_is_credited_only_with_what_it_adds_at_its_own_joint_rig():
     assert verdict == "pulley_inertia"
 
 
-def test_updating_is_taken_up_again_only_where_the_credit_fails_and_only_once():
-    # ``update_again`` resumes updating (simulations: tests/test_updating.py) when the best candidate's
-    # credit at its joint rig is below the threshold; where it holds, where none was taken, or once it has
-    # run, the state passes through untouched (no simulation is asked for: these states hold no recording).
+def test_updating_is_taken_up_again_only_from_an_unexplained_verdict_and_only_once(monkeypatch):
+    # ``update_again`` asks ``resume_update`` (simulations: tests/test_updating.py) whether the lead's joint
+    # rig, its mechanism out, fits better than the updated rig, when the verdict is "unexplained"; a named
+    # mechanism, "none", a lead without a joint rig, or a second time, passes through untouched. Here the
+    # comparison is answered without simulating (these states hold no recording): the joint rig fits worse,
+    # so the first round is kept, its one simulation counted, and nothing is run again.
+    from dragline.compare.diagnose import _steps
     from dragline.compare.diagnose._state import DiagnosisState, NullTest
-    from dragline.compare.diagnose._steps import update_again
 
+    asked = []
+
+    def declined(problem, ctx, nominal_sim, update, joint, error_directions, workers, progress):
+        asked.append(joint["name"])
+        return {"objective_updated": 2.0e5, "objective_joint_rig": 3.0e5, "update": None}
+
+    monkeypatch.setattr(_steps, "resume_update", declined)
+    update_again = _steps.update_again
     null = NullTest(threshold=THRESHOLD, noise_threshold=THRESHOLD, surrogate_quantile=0.0, kappa=1.0,
                     allowance=0.0, excess=0.0, share=0.0, own_error=0.0)
-    best = _hypothesis("chain_link_friction", 40 * THRESHOLD, 11.9, 2.1)
+    lead = _hypothesis("chain_link_friction", 40 * THRESHOLD, 11.9, 2.1)
+    runner_up = _hypothesis("pulley_inertia", 10 * THRESHOLD, 11.9, 5.0)
     held = {"with": 1.0e5, "without": 1.0e5 + 3.0 * THRESHOLD, "credit": 3.0 * THRESHOLD, "n_simulations": 1}
+    update = {"block": {"iterations": [{"chi2": 4.0e5}]}}
 
-    def state(credit=None, superseded=None):
-        h = best if credit is None else dict(best, credit_at_joint_rig=dict(held, credit=credit))
-        return DiagnosisState(measured=None, rig=None, maneuver=None, null=null, hypotheses=[h],
+    def state(verdict="unexplained", credit=None, joints=("chain_link_friction", "pulley_inertia"),
+              superseded=None):
+        h = lead if credit is None else dict(lead, credit_at_joint_rig=dict(held, credit=credit))
+        return DiagnosisState(measured=None, rig=None, maneuver=None, null=null, hypotheses=[h, runner_up],
+                              joints={n: {"name": n} for n in joints}, update=update, verdict=verdict,
                               superseded=superseded)
 
-    for passing in (state(), state(credit=3.0 * THRESHOLD), state(credit=THRESHOLD),
-                    state(credit=-5.0 * THRESHOLD, superseded={"lead": "pulley_inertia"})):
+    for passing in (state(verdict="chain_link_friction"), state(verdict="none", credit=-5.0 * THRESHOLD),
+                    state(joints=()), state(superseded={"lead": "pulley_inertia"})):
         assert update_again(passing) is passing
-    # A failed credit goes on to the joint rig it was credited at, which this state does not hold.
-    with pytest.raises(KeyError, match="chain_link_friction"):
-        update_again(state(credit=-5.0 * THRESHOLD))
+    assert asked == []
+    # The lead credited at its joint rig is the one examined, whether its credit failed (rule 3b) or held
+    # and another rule read "unexplained"; without a credit, the best-ranked candidate refitted jointly.
+    for examined, expected in ((state(credit=-5.0 * THRESHOLD), "chain_link_friction"),
+                               (state(credit=3.0 * THRESHOLD), "chain_link_friction"),
+                               (state(joints=("pulley_inertia",)), "pulley_inertia")):
+        kept = update_again(examined)
+        assert asked[-1] == expected
+        assert kept.superseded["lead"] == expected and kept.superseded["taken_up"] is False
+        assert kept.superseded["n_simulations"] == 1 and kept.verdict == "unexplained"
+        assert update_again(kept) is kept  # once
 
 
 def test_a_joint_refit_searches_within_the_candidates_range():

@@ -34,6 +34,7 @@ from ._diagnose import (
     write_diagnosis_json,
     write_diagnosis_report,
 )
+from ._decide import DecisionRules, verdict_of_document
 from ._detection import detection_thresholds
 from ._hypotheses import candidate_list
 from ._leave_one_out import leave_one_out
@@ -41,4 +42,4 @@ from ._scale import FREE_HZ, MachineScale, machine_scale
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
            "write_diagnosis_report", "candidate_list", "draw_held_out", "leave_one_out", "MachineScale",
-           "machine_scale", "FREE_HZ", "detection_thresholds"]
+           "machine_scale", "FREE_HZ", "detection_thresholds", "DecisionRules", "verdict_of_document"]

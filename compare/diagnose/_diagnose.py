@@ -245,6 +245,7 @@ def diagnosis_of(state):
         "model_error": state.model_error_block,
         "mismatch_after": {"model": state.after_name or ("updated" if update else "nominal"),
                            "entries": state.structured_after[:MAX_MISMATCH_ENTRIES]},
+        "offsets_beyond_tolerance": list(state.too_far),
         "hypotheses": state.hypotheses,
         "second_mechanism": second,
         "updated_again": state.superseded,

@@ -1,0 +1,223 @@
+"""The verdict's constants calibrated on kept diagnoses: ``dragline bench decisions``.
+
+The rules ``decide`` applies after the null test (a signature a parameter
+change makes, the share of the structure explained, the residual a named
+mechanism may leave) read four constants (``DecisionRules``). Each is
+calibrated here on recorded cases whose truth is known - the kept
+diagnoses of earlier runs of the trusted-verdict set, reduced to what
+``decide`` reads (``decision_records``) - never on the fresh seed a figure
+is reported on. A verdict can change only where a constant crosses one of
+the cases' own statistics, so every interval between two neighbouring
+statistics is tried at its middle: the calibration is exact for the
+records, not a grid's.
+
+The criterion, fixed before it was run: fewest false names first (a
+mechanism named on a recording with nothing added or with physics no
+candidate expresses), then most right verdicts (``_discovery``'s rule: the
+hidden mechanism named with its parameter within ``RIGHT_WITHIN``, "none"
+where nothing was added, "none" or "unexplained" out of the menu). The
+constant's calibrated value is the middle of the widest interval that
+meets it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+
+from dragline.compare import DecisionRules, verdict_of_document
+
+from ._discovery import RIGHT_WITHIN
+
+__all__ = ["decision_records", "calibrate_decisions", "summary_lines", "RECORDS"]
+
+RECORDS = os.path.join(os.path.dirname(__file__), "data", "decision_records.json")
+"""The committed calibration records: the trusted-verdict set's seeds 92 and 94 (docs/diagnosis.md)."""
+
+_HYPOTHESIS_KEYS = ("name", "main_parameter", "parameters", "improvement", "significant", "unresolved",
+                    "resolved_improvement", "at_bound", "score", "explained_fraction", "rms_before", "rms_after",
+                    "credit_at_joint_rig", "leads", "nuisance_correlation")
+_MISMATCH_KEYS = ("channel", "window", "t_start", "t_end")
+
+
+def _short(entries):
+    """Entries whose floats only the verdict's reason prints, at four digits."""
+    return [{k: float(f"{v:.4g}") if isinstance(v, float) else v for k, v in e.items()} for e in entries]
+
+
+def _hypothesis(h):
+    out = {k: h[k] for k in _HYPOTHESIS_KEYS if k in h}
+    if "leads" in out:  # rule 4 reads each lead's ``consistent``; its figures go into the reason
+        out["leads"] = dict(zip(out["leads"], _short(out["leads"].values())))
+    if "nuisance_correlation" in out:
+        out["nuisance_correlation"] = _short(out["nuisance_correlation"])
+    return out
+
+
+def _document(doc):
+    """What ``verdict_of_document`` reads of a diagnosis document, and nothing else: of the mismatch left,
+    whether there is one, and where it is largest."""
+    beyond = doc.get("offsets_beyond_tolerance")
+    if beyond is None:  # written before the key: the reason says it (rule 1's text)
+        beyond = ["(see reason)"] if doc["reason"].startswith("constant offsets beyond") else []
+    after = doc.get("mismatch_after") or {}
+    return {
+        "hypotheses": [_hypothesis(h) for h in doc["hypotheses"]],
+        "null_test": {k: doc["null_test"][k] for k in ("threshold", "noise_threshold")},
+        "mismatch_updated": [{k: e[k] for k in _MISMATCH_KEYS} for e in doc["mismatch_updated"][:1]],
+        "mismatch_after": {"entries": [{k: e[k] for k in _MISMATCH_KEYS} for e in after.get("entries", [])[:1]]},
+        "offsets_beyond_tolerance": beyond,
+    }
+
+
+def decision_records(report, diagnoses, label):
+    """A discovery run's cases with what ``decide`` read in each, from its kept diagnoses.
+
+    Parameters
+    ----------
+    report : dict
+        ``bench discovery --realism --json``'s figures (its ``realistic`` world's cases).
+    diagnoses : str
+        The folder ``--keep-diagnoses`` wrote (``case<seed>.json``).
+    label : str
+        The run's name in the records (say "seed 94, d3ce39b").
+
+    Returns
+    -------
+    list of dict
+        Per case ``set``, ``seed``, ``truth``, ``value``, ``out_of_menu``,
+        ``verdict`` (as the run gave it) and ``document``.
+    """
+    records = []
+    for case in report["worlds"]["realistic"]["cases"]:
+        with open(os.path.join(diagnoses, f"case{case['seed']}.json"), encoding="utf-8") as f:
+            doc = json.load(f)
+        doc = doc.get("diagnosis", doc)
+        records.append({"set": label, "seed": case["seed"], "truth": case["truth"], "value": case["value"],
+                        "out_of_menu": bool(case["out_of_menu"]), "verdict": case["verdict"],
+                        "document": _document(doc)})
+    return records
+
+
+def _judged(record, verdict):
+    """(right, false name) of ``verdict`` on ``record``."""
+    hidden = None if record["out_of_menu"] or record["truth"] == "none" else record["truth"]
+    named = verdict not in ("none", "unexplained")
+    if hidden is None:
+        right = (verdict in ("none", "unexplained")) if record["out_of_menu"] else verdict == "none"
+        return right, named
+    if verdict != hidden:
+        return False, False
+    h = next(h for h in record["document"]["hypotheses"] if h["name"] == verdict)
+    return abs(h["parameters"][h["main_parameter"]] / record["value"] - 1.0) <= RIGHT_WITHIN, False
+
+
+def _tally(records, rules):
+    right = false = 0
+    for record in records:
+        r, f = _judged(record, verdict_of_document(record["document"], rules))
+        right, false = right + r, false + f
+    return right, false
+
+
+def _statistics(records, field):
+    """The values of the cases' own statistic that ``field``'s constant is compared with."""
+    values = set()
+    for record in records:
+        for h in record["document"]["hypotheses"]:
+            if field == "confounded":
+                values.update(abs(e["correlation"]) for e in h.get("nuisance_correlation") or ())
+            elif field == "leftover_share":
+                before, after = h.get("rms_before"), h.get("rms_after")
+                if before is not None and after is not None and before**2 > 1.0:
+                    values.add(max(0.0, after**2 - 1.0) / (before**2 - 1.0))
+            else:
+                key = {"explained_min": "explained_fraction", "adequate_rms": "rms_after"}[field]
+                if h.get(key) is not None:
+                    values.add(float(h[key]))
+    return sorted(values)
+
+
+def _scan(records, field, base):
+    """Every interval between neighbouring statistics, tried at its middle: [(lo, hi, right, false)]."""
+    stats = _statistics(records, field)
+    edges = [-math.inf, *stats, math.inf]
+    rows = []
+    for lo, hi in zip(edges, edges[1:]):
+        if math.isinf(lo) and math.isinf(hi):
+            probe = getattr(base, field)
+        elif math.isinf(lo):
+            probe = hi - max(abs(hi), 1.0)
+        elif math.isinf(hi):
+            probe = lo + max(abs(lo), 1.0)
+        else:
+            probe = 0.5 * (lo + hi)
+        rows.append((lo, hi, *_tally(records, dataclasses.replace(base, **{field: probe}))))
+    return rows
+
+
+def calibrate_decisions(records, rules=None):
+    """Each of ``DecisionRules``' constants calibrated on ``records``, the others held at ``rules``.
+
+    Returns
+    -------
+    dict
+        ``n_cases``, ``sets``, ``criterion``, ``current`` (right and false
+        names under ``rules``), and per constant its ``value``, the best
+        ``right`` and ``false_names``, the ``intervals`` that reach them
+        (merged where neighbouring), the widest one's middle
+        (``calibrated``; an unbounded interval has none) and ``in_interval``
+        (whether the value in force lies in one).
+    """
+    rules = rules or DecisionRules()
+    right, false = _tally(records, rules)
+    out = {"n_cases": len(records), "sets": sorted({r["set"] for r in records}),
+           "criterion": "fewest false names, then most right verdicts",
+           "current": {"right": right, "false_names": false}, "constants": {}}
+    for field in (f.name for f in dataclasses.fields(DecisionRules)):
+        rows = _scan(records, field, rules)
+        best = min((f, -r) for _, _, r, f in rows)
+        merged = []
+        for lo, hi, r, f in rows:
+            if (f, -r) != best:
+                continue
+            if merged and merged[-1][1] == lo:
+                merged[-1][1] = hi
+            else:
+                merged.append([lo, hi])
+        widest = max(merged, key=lambda iv: iv[1] - iv[0])
+        value = getattr(rules, field)
+        out["constants"][field] = {
+            "value": value, "right": -best[1], "false_names": best[0],
+            "intervals": [[None if math.isinf(a) else a, None if math.isinf(b) else b] for a, b in merged],
+            "calibrated": None if any(map(math.isinf, widest)) else 0.5 * (widest[0] + widest[1]),
+            "in_interval": any(a < value < b for a, b in merged),
+        }
+    return out
+
+
+def summary_lines(report):
+    cur = report["current"]
+    lines = [f"{report['n_cases']} cases ({', '.join(report['sets'])}): {cur['right']} right, "
+             f"{cur['false_names']} false names with the constants in force"]
+    for field, c in report["constants"].items():
+        spans = ", ".join(f"{'-inf' if a is None else f'{a:.3g}'} to {'inf' if b is None else f'{b:.3g}'}"
+                          for a, b in c["intervals"])
+        lines.append(f"  {field} = {c['value']:g}: best {c['right']} right, {c['false_names']} false names for "
+                     f"values in {spans}" + ("" if c["in_interval"] else "  (the value in force is outside)"))
+    return lines
+
+
+def bench_command(args):
+    """``dragline bench decisions [--records FILE ...]``: the calibration on the committed or given records."""
+    records = []
+    for path in args.records or [RECORDS]:
+        with open(path, encoding="utf-8") as f:
+            try:
+                records.extend(json.load(f)["records"])
+            except (ValueError, KeyError, TypeError) as exc:
+                raise ValueError(f"{path}: not a decision records file ({exc!r})") from None
+    report = calibrate_decisions(records)
+    return report, summary_lines(report)

@@ -1,0 +1,80 @@
+"""The verdict's constants calibrated on kept diagnoses (dragline.benchmarks._decisions).
+
+The committed records are the trusted-verdict set's seeds 92 and 94, the
+diagnoses reduced to what ``decide`` reads; a calibration is checked first
+on records built by hand, where the answer is known without running it.
+"""
+
+import dataclasses
+import json
+
+import pytest
+
+from dragline.benchmarks import calibrate_decisions
+from dragline.benchmarks._decisions import RECORDS
+from dragline.compare import DecisionRules, verdict_of_document
+
+
+@pytest.fixture(scope="module")
+def committed():
+    with open(RECORDS, encoding="utf-8") as f:
+        return json.load(f)
+
+
+def _record(truth, value, best, rms_after, rms_before=4.0, out_of_menu=False, fitted=None):
+    hypothesis = {"name": best, "main_parameter": "p", "parameters": {"p": fitted or value or 1.0},
+                  "improvement": 1e6, "significant": True, "at_bound": None, "score": 10.0,
+                  "explained_fraction": 0.95, "rms_before": rms_before, "rms_after": rms_after,
+                  "nuisance_correlation": []}
+    return {"set": "by hand", "seed": 0, "truth": truth, "value": value, "out_of_menu": out_of_menu,
+            "verdict": None, "document": {"hypotheses": [hypothesis], "null_test": {"threshold": 1e5},
+                                          "mismatch_updated": [], "mismatch_after": {"entries": []},
+                                          "offsets_beyond_tolerance": []}}
+
+
+def test_the_records_give_back_the_verdicts_their_diagnoses_gave():
+    # The reduction keeps all that decide reads: under the constants in force when they ran, every one of
+    # the 120 cases reads as its diagnosis did.
+    with open(RECORDS, encoding="utf-8") as f:
+        data = json.load(f)
+    then = DecisionRules(**data["rules_in_force"])
+    assert len(data["records"]) == 120
+    assert [verdict_of_document(r["document"], then) for r in data["records"]] == \
+        [r["verdict"] for r in data["records"]]
+
+
+def test_a_calibration_finds_the_interval_between_the_cases_that_bound_it():
+    # Right names leaving 2.2 and 2.0 sigma (a fifth to a quarter of the excess), a bearing damping out of
+    # the menu named by its stand-in leaving 2.6, a strong right name leaving 3.0 but little of its excess:
+    # the residual floor must lie between 2.2 and 2.6 (below, the right name at 2.2 is held back; above,
+    # the false one is named).
+    records = [_record("aero_drag", 1.85, "aero_drag", 2.2), _record("pulley_inertia", 5e-4, "pulley_inertia", 2.0),
+               _record("sheave_bearing_damping", 0.003, "rope_bending_damping", 2.6, out_of_menu=True),
+               _record("pulley_friction", 0.01, "pulley_friction", 3.0, rms_before=10.0)]
+    out = calibrate_decisions(records, DecisionRules(adequate_rms=2.0, leftover_share=0.1))
+    assert out["current"] == {"right": 3, "false_names": 0}  # the held-back out-of-menu case is right
+    rms = out["constants"]["adequate_rms"]
+    assert (rms["right"], rms["false_names"]) == (4, 0)
+    assert rms["intervals"] == [[pytest.approx(2.2), pytest.approx(2.6)]]
+    assert rms["calibrated"] == pytest.approx(2.4) and not rms["in_interval"]
+    left = out["constants"]["leftover_share"]
+    # Holding the floor at 2.0 instead, the share left decides: the weak right name at 2.2 sigma leaves
+    # (2.2^2 - 1) / (4^2 - 1) of its excess, the false one (2.6^2 - 1) / 15; the strong one leaves 8 / 99.
+    assert (left["right"], left["false_names"]) == (4, 0)
+    assert left["intervals"] == [[pytest.approx((2.2**2 - 1) / 15), pytest.approx((2.6**2 - 1) / 15)]]
+    # A name whose value is 30 % off is not right, whatever the constant.
+    off = [_record("pulley_inertia", 5e-4, "pulley_inertia", 1.0, fitted=3.5e-4)]
+    assert calibrate_decisions(off)["current"] == {"right": 0, "false_names": 0}
+
+
+def test_the_constants_in_force_lie_where_the_calibration_puts_them():
+    # Each of decide's constants inside the interval the committed records calibrate it to: moving one past
+    # it names a mechanism falsely or holds a right name back on seeds 92 and 94.
+    with open(RECORDS, encoding="utf-8") as f:
+        records = json.load(f)["records"]
+    out = calibrate_decisions(records)
+    for field in (f.name for f in dataclasses.fields(DecisionRules)):
+        assert out["constants"][field]["in_interval"], field
+    assert out["current"]["false_names"] == 0
+    rms = out["constants"]["adequate_rms"]["intervals"]
+    assert len(rms) == 1 and 2.2 < rms[0][0] < rms[0][1] < 2.7
