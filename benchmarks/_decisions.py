@@ -31,7 +31,7 @@ from dragline.compare import DecisionRules, verdict_of_document
 
 from ._discovery import RIGHT_WITHIN
 
-__all__ = ["decision_records", "calibrate_decisions", "summary_lines", "RECORDS"]
+__all__ = ["decision_records", "write_decision_records", "calibrate_decisions", "summary_lines", "RECORDS"]
 
 RECORDS = os.path.join(os.path.dirname(__file__), "data", "decision_records.json")
 """The committed calibration records: the trusted-verdict set's seeds 92 and 94 (docs/diagnosis.md)."""
@@ -65,7 +65,7 @@ def _document(doc):
     after = doc.get("mismatch_after") or {}
     return {
         "hypotheses": [_hypothesis(h) for h in doc["hypotheses"]],
-        "null_test": {k: doc["null_test"][k] for k in ("threshold", "noise_threshold")},
+        "null_test": {k: doc["null_test"].get(k) for k in ("threshold", "noise_threshold")},
         "mismatch_updated": [{k: e[k] for k in _MISMATCH_KEYS} for e in doc["mismatch_updated"][:1]],
         "mismatch_after": {"entries": [{k: e[k] for k in _MISMATCH_KEYS} for e in after.get("entries", [])[:1]]},
         "offsets_beyond_tolerance": beyond,
@@ -87,18 +87,32 @@ def decision_records(report, diagnoses, label):
     Returns
     -------
     list of dict
-        Per case ``set``, ``seed``, ``truth``, ``value``, ``out_of_menu``,
-        ``verdict`` (as the run gave it) and ``document``.
+        Per case with a kept diagnosis: ``set``, ``seed``, ``truth``,
+        ``value``, ``out_of_menu``, ``verdict`` (as the run gave it) and
+        ``document``.
     """
     records = []
     for case in report["worlds"]["realistic"]["cases"]:
-        with open(os.path.join(diagnoses, f"case{case['seed']}.json"), encoding="utf-8") as f:
+        path = os.path.join(diagnoses, f"case{case['seed']}.json")
+        if not os.path.isfile(path):
+            continue  # a case whose diagnosis stopped on an error kept none
+        with open(path, encoding="utf-8") as f:
             doc = json.load(f)
         doc = doc.get("diagnosis", doc)
         records.append({"set": label, "seed": case["seed"], "truth": case["truth"], "value": case["value"],
                         "out_of_menu": bool(case["out_of_menu"]), "verdict": case["verdict"],
                         "document": _document(doc)})
     return records
+
+
+def write_decision_records(path, records, origin):
+    """``records`` as a file ``bench decisions --records`` reads, with the rules they were decided under."""
+    data = {"origin": origin, "licence": "MIT, as the repository",
+            "rules_in_force": dataclasses.asdict(DecisionRules()), "records": records}
+    tmp = f"{path}.tmp"
+    with open(tmp, "w", encoding="utf-8") as f:
+        json.dump(data, f, separators=(",", ":"))
+    os.replace(tmp, path)
 
 
 def _judged(record, verdict):

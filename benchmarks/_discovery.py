@@ -685,4 +685,12 @@ def bench_command(args):
                              keep=getattr(args, "keep_diagnoses", None))
     if derivation:
         report["magnitudes"] = derivation
+    keep = getattr(args, "keep_diagnoses", None)
+    if keep and "realistic" in report.get("worlds", {}):
+        # What the verdict's rules read in each case, for ``bench decisions --records`` to calibrate on.
+        from ._decisions import decision_records, write_decision_records
+
+        label = f"seed {args.seed}" + (f", {args.rig}" if getattr(args, "rig", None) else "")
+        write_decision_records(os.path.join(keep, "decision_records.json"), decision_records(report, keep, label),
+                               origin=f"dragline bench discovery --realism, {label}")
     return report, summary_lines(report)

@@ -78,3 +78,33 @@ def test_the_constants_in_force_lie_where_the_calibration_puts_them():
     assert out["current"]["false_names"] == 0
     rms = out["constants"]["adequate_rms"]["intervals"]
     assert len(rms) == 1 and 2.2 < rms[0][0] < rms[0][1] < 2.7
+
+
+def test_a_runs_kept_diagnoses_become_records_that_decide_alike(tmp_path):
+    # A discovery run's report and one kept document with more than decide reads (a second mismatch entry,
+    # keys of no rule): the record drops the rest and reads the same verdict, under the constants in force
+    # and under others; written and read back, it calibrates as the records in memory do.
+    from dragline.benchmarks import decision_records
+    from dragline.benchmarks._decisions import write_decision_records
+
+    hand = _record("aero_drag", 1.85, "aero_drag", 2.2)
+    doc = {**hand["document"], "verdict": "aero_drag", "reason": "aero_drag improves held-out data",
+           "timing": {"simulations": 300}, "second_mechanism": None}
+    doc["hypotheses"] = [dict(doc["hypotheses"][0], profile=[{"value": 1.0, "chi2": 2.0}], rms_channels={})]
+    entry = {"channel": "bucket.x", "window": "phase 1", "t_start": 0.0, "t_end": 2.4, "score": 3.0}
+    doc["mismatch_updated"] = [entry, dict(entry, channel="bucket.z")]
+    (tmp_path / "case7.json").write_text(json.dumps(doc))
+    report = {"worlds": {"realistic": {"cases": [
+        {"seed": 7, "truth": "aero_drag", "value": 1.85, "out_of_menu": False, "verdict": "aero_drag"},
+        {"seed": 8, "truth": "none", "value": 0.0, "out_of_menu": False, "verdict": "error"}]}}}
+    records = decision_records(report, str(tmp_path), "by hand")
+    assert [r["seed"] for r in records] == [7]  # the case that kept no diagnosis is left out
+    reduced = records[0]["document"]
+    assert "profile" not in reduced["hypotheses"][0] and len(reduced["mismatch_updated"]) == 1
+    for rules in (DecisionRules(), DecisionRules(adequate_rms=2.0), DecisionRules(leftover_share=0.5)):
+        assert verdict_of_document(reduced, rules) == verdict_of_document(doc, rules)
+    assert {verdict_of_document(reduced, DecisionRules(adequate_rms=a)) for a in (2.0, 2.4)} == \
+        {"unexplained", "aero_drag"}
+    path = tmp_path / "records.json"
+    write_decision_records(str(path), records, origin="by hand")
+    assert calibrate_decisions(json.loads(path.read_text())["records"]) == calibrate_decisions(records)
