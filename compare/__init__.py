@@ -44,14 +44,23 @@ __all__ += [
 from .diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_diagnosis_json, write_diagnosis_report
 from ._foxglove import write_results
 from ._machine_figure import MachinePicture, draw_machine, machine_picture, picture_at
-from .diagnose import DecisionRules, MachineScale, detection_thresholds, machine_scale, verdict_of_document
+from .diagnose import (
+    SECOND_EXCESS_SHARE,
+    DecisionRules,
+    MachineScale,
+    detection_thresholds,
+    machine_scale,
+    seconds_of_document,
+    verdict_of_document,
+)
 from ._paper import DIG_PEAKS
 from ._executor import DaskExecutor, Executor, ExecutorError, LocalExecutor, as_executor, executor_from
 
 __all__ += ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
             "write_diagnosis_report", "write_results", "DIG_PEAKS",
             "MachinePicture", "machine_picture", "picture_at", "draw_machine", "MachineScale", "machine_scale",
-            "detection_thresholds", "DecisionRules", "verdict_of_document",
+            "detection_thresholds", "DecisionRules", "verdict_of_document", "seconds_of_document",
+            "SECOND_EXCESS_SHARE",
             "Executor", "LocalExecutor", "DaskExecutor", "ExecutorError", "executor_from", "as_executor"]
 
 

@@ -108,3 +108,38 @@ def test_a_runs_kept_diagnoses_become_records_that_decide_alike(tmp_path):
     path = tmp_path / "records.json"
     write_decision_records(str(path), records, origin="by hand")
     assert calibrate_decisions(json.loads(path.read_text())["records"]) == calibrate_decisions(records)
+
+
+def test_a_second_mechanism_counts_below_the_share_its_improvement_and_resolved_part_allow():
+    # Noise threshold 100, the named model's excess 1000: a second improving by 300 counts while the share's
+    # threshold (1000 s) stays below 300, with 200 of it below the resolved band (half the threshold at
+    # most: 400) - so below s = 0.3; with only 100 resolved, below s = 0.2 (the resolved part binds).
+    from dragline.benchmarks._decisions import _flip_share
+    from dragline.compare import seconds_of_document
+
+    def doc(resolved):
+        return {"second_mechanism": {"noise_threshold": 100.0, "allowance": 0.0, "named_excess": 1000.0,
+                                     "candidates": [{"name": "pulley_inertia", "parameters": {"inertia": 3e-4},
+                                                     "improvement": 300.0, "resolved_improvement": resolved,
+                                                     "at_bound": None}]}}
+
+    assert seconds_of_document(doc(200.0), 0.29) == ["pulley_inertia"] and seconds_of_document(doc(200.0), 0.31) == []
+    assert _flip_share(doc(200.0)) == pytest.approx(0.3, rel=1e-5)
+    assert _flip_share(doc(100.0)) == pytest.approx(0.2, rel=1e-5)
+    # Below the noise threshold it counts at no share.
+    assert _flip_share(doc(20.0)) == 0.0
+
+
+def test_no_record_of_one_mechanism_shows_a_second_at_the_share_in_force():
+    # Every second mechanism in the trusted-verdict records is false (one mechanism or none hidden): the
+    # share in force names none of them, and lies above the least share that does so (case 92517's sheave
+    # inertia beside pulley friction, 0.385 of the named model's excess). A share moved below it fails.
+    from dragline.benchmarks._decisions import calibrate_second_share
+    from dragline.compare import SECOND_EXCESS_SHARE
+
+    with open(RECORDS, encoding="utf-8") as f:
+        records = json.load(f)["records"]
+    out = calibrate_second_share(records)
+    assert out["false_seconds"] == 0 and out["in_interval"]
+    assert out["set_by"] == 92517 and 0.3 < out["lowest"] < SECOND_EXCESS_SHARE
+    assert calibrate_second_share(records, share=0.9 * out["lowest"])["false_seconds"] >= 1

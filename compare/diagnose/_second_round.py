@@ -16,7 +16,32 @@ from ...simulate import make_mechanism
 from ._band import RESOLVED_MIN, band_improvement
 from ._hypotheses import fit_candidates, null_threshold, score_candidate
 
-__all__ = ["second_round"]
+__all__ = ["second_round", "is_second", "seconds_of_document"]
+
+
+def is_second(improvement, resolved, value, at_bound, threshold):
+    """Whether a candidate fitted on top of the named one counts: beyond ``threshold`` (chi2), inside its
+    range, and beyond ``_band.RESOLVED_MIN`` of the threshold below ``_band.RESOLVED_HZ``."""
+    return bool(improvement > threshold and value > 0 and not at_bound and resolved >= RESOLVED_MIN * threshold)
+
+
+def seconds_of_document(document, share):
+    """The second mechanisms a diagnosis document's second round names when a second must explain ``share``
+    of the named model's excess chi2 (``_steps.SECOND_EXCESS_SHARE`` in force): names, best first.
+
+    A document written before ``named_excess`` was kept gives it as its allowance over the share then in
+    force, 0.4.
+    """
+    second = document.get("second_mechanism") or {}
+    if not second.get("candidates"):
+        return []
+    excess = second.get("named_excess")
+    if excess is None:
+        excess = second["allowance"] / 0.4
+    threshold = max(second["noise_threshold"], share * max(0.0, excess))
+    return [h["name"] for h in second["candidates"]
+            if is_second(h["improvement"], h["resolved_improvement"], next(iter(h["parameters"].values())),
+                         h["at_bound"], threshold)]
 
 
 def second_round(problem, ctx, candidates, named, base_sim, workers=2, seed=0, progress=None, allowance=0.0):
@@ -79,8 +104,7 @@ def second_round(problem, ctx, candidates, named, base_sim, workers=2, seed=0, p
             "improvement": s["improvement"],
             "score": s["improvement"] / threshold,
             "resolved_improvement": resolved,
-            "significant": bool(s["improvement"] > threshold and s["value"] > 0 and not s["at_bound"]
-                                and resolved >= RESOLVED_MIN * threshold),
+            "significant": is_second(s["improvement"], resolved, s["value"], s["at_bound"], threshold),
             "at_bound": s["at_bound"],
         })
     found.sort(key=lambda h: -h["improvement"])

@@ -87,7 +87,10 @@ OFFSET_LIMIT = {"position": 0.010, "angle": math.radians(2.0)}
 # this many times OFFSET_LIMIT that no parameter explains is another rig.
 DIFFERENT_RIG = 5.0
 # A second mechanism must explain at least this share of the chi2 the named
-# model leaves above noise (see ``test_second_mechanism``).
+# model leaves above noise (see ``test_second_mechanism``). Calibrated from
+# below on the trusted-verdict records (``bench decisions``): none of their
+# 120 cases, one mechanism or none hidden in each, shows a second from 0.385
+# up; from above, a sheave inertia under aero drag takes 64 %.
 SECOND_EXCESS_SHARE = 0.4
 # A candidate (not the lead) whose signature a parameter change reproduces
 # to this share is refitted jointly with the parameters too (``refit_jointly``).
@@ -818,12 +821,13 @@ def test_second_mechanism(state):
     # 4.6 times; the inertia hidden under aero drag in tests/test_diagnose.py
     # takes 64 %). (Its own name: the JSON's model_error_allowance is the
     # first round's.)
-    allowance = 0.0
+    allowance, named_excess = 0.0, None
     if state.update is not None:
         named_excess = problem.evaluate(base_sim)["full"] - problem.n_weighted
         allowance = SECOND_EXCESS_SHARE * max(0.0, named_excess)
     second = second_round(problem, ctx, state.runnable, named, base_sim, workers=state.workers, seed=state.seed,
                           progress=state.note, allowance=allowance)
+    second["named_excess"] = named_excess
     reason = state.reason
     also = [h for h in second["candidates"] if h["significant"]]
     if also:
