@@ -29,7 +29,7 @@ import os
 
 from dragline.compare import SECOND_EXCESS_SHARE, DecisionRules, seconds_of_document, verdict_of_document
 
-from ._discovery import RIGHT_WITHIN
+from ._discovery import verdict_right
 
 __all__ = ["decision_records", "write_decision_records", "calibrate_decisions", "summary_lines", "RECORDS"]
 
@@ -38,7 +38,7 @@ RECORDS = os.path.join(os.path.dirname(__file__), "data", "decision_records.json
 
 _HYPOTHESIS_KEYS = ("name", "main_parameter", "parameters", "improvement", "significant", "unresolved",
                     "resolved_improvement", "at_bound", "score", "explained_fraction", "rms_before", "rms_after",
-                    "credit_at_joint_rig", "leads", "nuisance_correlation")
+                    "leftover_share", "credit_at_joint_rig", "leads", "nuisance_correlation")
 _MISMATCH_KEYS = ("channel", "window", "t_start", "t_end")
 
 
@@ -59,9 +59,6 @@ def _hypothesis(h):
 def _document(doc):
     """What ``verdict_of_document`` reads of a diagnosis document, and nothing else: of the mismatch left,
     whether there is one, and where it is largest."""
-    beyond = doc.get("offsets_beyond_tolerance")
-    if beyond is None:  # written before the key: the reason says it (rule 1's text)
-        beyond = ["(see reason)"] if doc["reason"].startswith("constant offsets beyond") else []
     after = doc.get("mismatch_after") or {}
     second = doc.get("second_mechanism") or {}
     if second.get("candidates"):
@@ -74,7 +71,8 @@ def _document(doc):
         "null_test": {k: doc["null_test"].get(k) for k in ("threshold", "noise_threshold")},
         "mismatch_updated": [{k: e[k] for k in _MISMATCH_KEYS} for e in doc["mismatch_updated"][:1]],
         "mismatch_after": {"entries": [{k: e[k] for k in _MISMATCH_KEYS} for e in after.get("entries", [])[:1]]},
-        "offsets_beyond_tolerance": beyond,
+        "offsets_beyond_tolerance": doc.get("offsets_beyond_tolerance"),
+        "reason": doc["reason"],  # rule 1's text, for a document written before the key above
         "second_mechanism": second or None,
     }
 
@@ -124,15 +122,11 @@ def write_decision_records(path, records, origin):
 
 def _judged(record, verdict):
     """(right, false name) of ``verdict`` on ``record``."""
-    hidden = None if record["out_of_menu"] or record["truth"] == "none" else record["truth"]
-    named = verdict not in ("none", "unexplained")
-    if hidden is None:
-        right = (verdict in ("none", "unexplained")) if record["out_of_menu"] else verdict == "none"
-        return right, named
-    if verdict != hidden:
-        return False, False
-    h = next(h for h in record["document"]["hypotheses"] if h["name"] == verdict)
-    return abs(h["parameters"][h["main_parameter"]] / record["value"] - 1.0) <= RIGHT_WITHIN, False
+    h = next((h for h in record["document"]["hypotheses"] if h["name"] == verdict), None)
+    fitted = None if h is None else h["parameters"][h["main_parameter"]]
+    right = verdict_right(record["truth"], record["value"], record["out_of_menu"], verdict, fitted)
+    nothing_nameable = record["out_of_menu"] or record["truth"] == "none"
+    return right, nothing_nameable and verdict not in ("none", "unexplained")
 
 
 def _tally(records, rules):
@@ -150,12 +144,9 @@ def _statistics(records, field):
         for h in record["document"]["hypotheses"]:
             if field == "confounded":
                 values.update(abs(e["correlation"]) for e in h.get("nuisance_correlation") or ())
-            elif field == "leftover_share":
-                before, after = h.get("rms_before"), h.get("rms_after")
-                if before is not None and after is not None and before**2 > 1.0:
-                    values.add(max(0.0, after**2 - 1.0) / (before**2 - 1.0))
             else:
-                key = {"explained_min": "explained_fraction", "adequate_rms": "rms_after"}[field]
+                key = {"explained_min": "explained_fraction", "adequate_rms": "rms_after",
+                       "leftover_share": "leftover_share"}[field]
                 if h.get(key) is not None:
                     values.add(float(h[key]))
     return sorted(values)

@@ -270,6 +270,17 @@ def _effect_size(result, without):
             "bucket_pitch_deg": float(np.degrees(np.sqrt(np.mean(p**2))))}
 
 
+def verdict_right(truth, value, out_of_menu, verdict, fitted=None):
+    """Issue 37's rule: the hidden mechanism named with its parameter (``fitted``, the verdict's) within
+    ``RIGHT_WITHIN`` of ``value``, not the name alone; "none" where nothing was added; "none" or
+    "unexplained" out of the menu (with the update that names the changed parameter, for material damping)."""
+    if out_of_menu:
+        return verdict in ("none", "unexplained")
+    if truth == "none":
+        return verdict == "none"
+    return verdict == truth and fitted is not None and abs(fitted / value - 1.0) <= RIGHT_WITHIN
+
+
 def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_name=None):
     """Make one blind session, diagnose it from its directory alone, score it here.
 
@@ -323,26 +334,22 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_
     out.update(verdict=doc["verdict"], reason=doc["reason"], diagnosis_seconds=time.perf_counter() - t0,
                load_seconds=doc["timing"].get("load_seconds"), simulations=doc["timing"]["simulations"])
     in_menu = name is None or (name in MECHANISMS and MECHANISMS[name].candidate)
-    # Out of the menu the right answers are "unexplained" and "none" (with
-    # the update that names the changed parameter, for material damping).
     out["out_of_menu"] = not in_menu
-    out["right"] = (doc["verdict"] == (name or "none")) if in_menu else doc["verdict"] in ("none", "unexplained")
+    hyp = {h["name"]: h for h in doc["hypotheses"]}
+    fitted = hyp[name]["parameters"][hyp[name]["main_parameter"]] if name in hyp else None
+    out["right"] = verdict_right(name or "none", value, not in_menu, doc["verdict"], fitted)
     if coords is not None:
         out["calibration"] = _calibration_errors(doc, coords, machine)
     second = doc.get("second_mechanism") or {}
     out["also"] = [h["name"] for h in second.get("candidates", []) if h["significant"]]
-    hyp = {h["name"]: h for h in doc["hypotheses"]}
-    if name is not None and name in hyp:
+    if fitted is not None:
         h = hyp[name]
-        fitted = h["parameters"][h["main_parameter"]]
         u = h["uncertainty"]
 
         def covers(key):
             interval = u.get(key)
             return bool(interval and interval[0] <= value <= interval[1])
 
-        # Right means the parameter within RIGHT_WITHIN too (issue 37), not the name alone.
-        out["right"] = out["right"] and abs(fitted / value - 1.0) <= RIGHT_WITHIN
         out.update(fitted=fitted, relative_error=fitted / value - 1.0 if value else None,
                    interval_68=u.get("interval_68"), covered=covers("interval_68"), covered_95=covers("interval_95"),
                    covered_fixed_rig=covers("interval_68_fixed_rig"),

@@ -13,6 +13,7 @@ import pytest
 from dragline.benchmarks import calibrate_decisions
 from dragline.benchmarks._decisions import RECORDS
 from dragline.compare import DecisionRules, verdict_of_document
+from dragline.compare.diagnose._decide import leftover_share
 
 
 @pytest.fixture(scope="module")
@@ -26,6 +27,7 @@ def _record(truth, value, best, rms_after, rms_before=4.0, out_of_menu=False, fi
                   "improvement": 1e6, "significant": True, "at_bound": None, "score": 10.0,
                   "explained_fraction": 0.95, "rms_before": rms_before, "rms_after": rms_after,
                   "nuisance_correlation": []}
+    hypothesis["leftover_share"] = leftover_share(hypothesis)  # as the diagnosis records it
     return {"set": "by hand", "seed": 0, "truth": truth, "value": value, "out_of_menu": out_of_menu,
             "verdict": None, "document": {"hypotheses": [hypothesis], "null_test": {"threshold": 1e5},
                                           "mismatch_updated": [], "mismatch_after": {"entries": []},
