@@ -20,7 +20,7 @@ from dragline.compare.diagnose._decide import (
     leftover_share,
     model_error_share,
 )
-from dragline.compare.diagnose._updating import JOINT_SPAN, joint_value_bounds
+from dragline.compare.diagnose._updating import joint_value_bounds
 
 THRESHOLD = 100.0
 
@@ -176,14 +176,16 @@ def test_updating_is_taken_up_again_only_from_an_unexplained_verdict_and_only_on
         assert update_again(kept) is kept  # once
 
 
-def test_a_joint_refit_searches_within_the_candidates_range():
+def test_a_joint_refit_searches_the_candidates_whole_range():
+    # The first fit's value is no bound: a first fit at a third of the truth (the rig took up the rest) may go
+    # anywhere in the range.
     lo, hi = joint_value_bounds(0.012, (0.01, 1.0))
-    assert lo == pytest.approx(math.log(0.01)) and hi == pytest.approx(math.log(0.012) + JOINT_SPAN)
+    assert lo == pytest.approx(math.log(0.01)) and hi == pytest.approx(0.0)
     lo, hi = joint_value_bounds(0.9, (0.01, 1.0))
-    assert hi == pytest.approx(0.0) and lo == pytest.approx(math.log(0.9) - JOINT_SPAN)
-    # Without a range: the plain span either side.
-    lo, hi = joint_value_bounds(0.1)
-    assert hi - lo == pytest.approx(2 * JOINT_SPAN)
+    assert lo == pytest.approx(math.log(0.01)) and hi == pytest.approx(0.0)
+    # A first fit outside the range (a caller's own start) stays inside the bounds; without a range ln p is free.
+    assert joint_value_bounds(2.0, (0.01, 1.0))[1] == pytest.approx(math.log(2.0))
+    assert joint_value_bounds(0.1) == (-math.inf, math.inf)
 
 
 def test_a_candidate_beyond_the_threshold_only_above_the_resolved_band_is_not_named_but_said():
