@@ -27,7 +27,7 @@ import json
 import math
 import os
 
-from dragline.compare import SECOND_EXCESS_SHARE, DecisionRules, seconds_of_document, verdict_of_document
+from dragline.compare import SECOND_EXCESS_SHARE, DecisionRules, rethresholded, seconds_of_document, verdict_of_document
 
 from ._discovery import verdict_right
 
@@ -36,6 +36,8 @@ __all__ = ["decision_records", "write_decision_records", "calibrate_decisions", 
 RECORDS = os.path.join(os.path.dirname(__file__), "data", "decision_records.json")
 """The committed calibration records: the trusted-verdict set's seeds 92 and 94 (docs/diagnosis.md)."""
 
+# The model-error share in force for documents written before their null test named it (seeds 92-98).
+MODEL_ERROR_SHARE_BEFORE_KEY = 0.25
 _HYPOTHESIS_KEYS = ("name", "main_parameter", "parameters", "improvement", "significant", "unresolved",
                     "resolved_improvement", "at_bound", "score", "explained_fraction", "rms_before", "rms_after",
                     "leftover_share", "credit_at_joint_rig", "leads", "nuisance_correlation")
@@ -68,7 +70,12 @@ def _document(doc):
                                                     "at_bound")} for h in second["candidates"]]}
     return {
         "hypotheses": [_hypothesis(h) for h in doc["hypotheses"]],
-        "null_test": {k: doc["null_test"].get(k) for k in ("threshold", "noise_threshold")},
+        # The threshold's parts, so that the model-error share and the resolved share can be moved too.
+        "null_test": {**{k: doc["null_test"].get(k) for k in ("threshold", "noise_threshold",
+                                                               "model_error_allowance", "own_error_chi2")},
+                      "model_error_share_at_full": doc["null_test"].get("model_error_share_at_full",
+                                                                        MODEL_ERROR_SHARE_BEFORE_KEY)},
+        "settings": {k: v for k, v in doc.get("settings", {}).items() if k == "resolved_min"},
         "mismatch_updated": [{k: e[k] for k in _MISMATCH_KEYS} for e in doc["mismatch_updated"][:1]],
         "mismatch_after": {"entries": [{k: e[k] for k in _MISMATCH_KEYS} for e in after.get("entries", [])[:1]]},
         "offsets_beyond_tolerance": doc.get("offsets_beyond_tolerance"),
@@ -129,19 +136,45 @@ def _judged(record, verdict):
     return right, nothing_nameable and verdict not in ("none", "unexplained")
 
 
+def _best_significant(hypotheses):
+    return next((h["name"] for h in hypotheses if h.get("significant")), None)
+
+
 def _tally(records, rules):
-    right = false = 0
+    """(right, false names, moved): ``moved`` counts the records whose best significant candidate is not their
+    diagnosis's own under ``rules`` (their re-decision reads the mismatch the first best left)."""
+    right = false = moved = 0
     for record in records:
         r, f = _judged(record, verdict_of_document(record["document"], rules))
+        hypotheses, _ = rethresholded(record["document"], rules)
+        moved += _best_significant(hypotheses) != _best_significant(record["document"]["hypotheses"])
         right, false = right + r, false + f
-    return right, false
+    return right, false, moved
 
 
-def _statistics(records, field):
-    """The values of the cases' own statistic that ``field``'s constant is compared with."""
+def _statistics(records, field, base):
+    """The values of the cases' own statistic that ``field``'s constant is compared with (the other
+    constants at ``base``)."""
     values = set()
     for record in records:
-        for h in record["document"]["hypotheses"]:
+        doc = record["document"]
+        if field == "model_error_share":  # where the scaled budget crosses a gain the threshold is compared with
+            null = doc["null_test"]
+            if not null.get("model_error_allowance"):
+                continue
+            per_share = null["model_error_allowance"] / null["model_error_share_at_full"]
+            for h in doc["hypotheses"]:
+                credit = (h.get("credit_at_joint_rig") or {}).get("credit")
+                for x in (h["improvement"], h.get("resolved_improvement", 0.0) / base.resolved_min, credit):
+                    if x is not None and x > 0:
+                        values.add(float(x / per_share))
+            continue
+        if field == "resolved_min":
+            _, threshold = rethresholded(doc, base)
+            values.update(float(h["resolved_improvement"] / threshold) for h in doc["hypotheses"]
+                          if h.get("resolved_improvement") is not None)
+            continue
+        for h in doc["hypotheses"]:
             if field == "confounded":
                 values.update(abs(e["correlation"]) for e in h.get("nuisance_correlation") or ())
             else:
@@ -153,8 +186,8 @@ def _statistics(records, field):
 
 
 def _scan(records, field, base):
-    """Every interval between neighbouring statistics, tried at its middle: [(lo, hi, right, false)]."""
-    stats = _statistics(records, field)
+    """Every interval between neighbouring statistics, tried at its middle: [(lo, hi, right, false, moved)]."""
+    stats = _statistics(records, field, base)
     edges = [-math.inf, *stats, math.inf]
     rows = []
     for lo, hi in zip(edges, edges[1:]):
@@ -180,21 +213,26 @@ def calibrate_decisions(records, rules=None):
         names under ``rules``), and per constant its ``value``, the best
         ``right`` and ``false_names``, the ``intervals`` that reach them
         (merged where neighbouring), the widest one's middle
-        (``calibrated``; an unbounded interval has none) and ``in_interval``
-        (whether the value in force lies in one).
+        (``calibrated``; an unbounded interval has none), ``in_interval``
+        (whether the value in force lies in one) and ``best_changed`` (the
+        most records, over those intervals, whose best significant
+        candidate is another than their diagnosis's: their re-decision
+        reads the mismatch the first best left, so the figure is exact
+        only where it is 0).
     """
     rules = rules or DecisionRules()
-    right, false = _tally(records, rules)
+    right, false, _ = _tally(records, rules)
     out = {"n_cases": len(records), "sets": sorted({r["set"] for r in records}),
            "criterion": "fewest false names, then most right verdicts",
            "current": {"right": right, "false_names": false}, "constants": {}}
     for field in (f.name for f in dataclasses.fields(DecisionRules)):
         rows = _scan(records, field, rules)
-        best = min((f, -r) for _, _, r, f in rows)
-        merged = []
-        for lo, hi, r, f in rows:
+        best = min((f, -r) for _, _, r, f, _ in rows)
+        merged, moved = [], 0
+        for lo, hi, r, f, m in rows:
             if (f, -r) != best:
                 continue
+            moved = max(moved, m)
             if merged and merged[-1][1] == lo:
                 merged[-1][1] = hi
             else:
@@ -206,6 +244,7 @@ def calibrate_decisions(records, rules=None):
             "intervals": [[None if math.isinf(a) else a, None if math.isinf(b) else b] for a, b in merged],
             "calibrated": None if any(map(math.isinf, widest)) else 0.5 * (widest[0] + widest[1]),
             "in_interval": any(a < value < b for a, b in merged),
+            "best_changed": moved,
         }
     return out
 

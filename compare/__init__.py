@@ -50,6 +50,7 @@ from .diagnose import (
     MachineScale,
     detection_thresholds,
     machine_scale,
+    rethresholded,
     seconds_of_document,
     verdict_of_document,
 )
@@ -59,7 +60,7 @@ from ._executor import DaskExecutor, Executor, ExecutorError, LocalExecutor, as_
 __all__ += ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
             "write_diagnosis_report", "write_results", "DIG_PEAKS",
             "MachinePicture", "machine_picture", "picture_at", "draw_machine", "MachineScale", "machine_scale",
-            "detection_thresholds", "DecisionRules", "verdict_of_document", "seconds_of_document",
+            "detection_thresholds", "DecisionRules", "verdict_of_document", "rethresholded", "seconds_of_document",
             "SECOND_EXCESS_SHARE",
             "Executor", "LocalExecutor", "DaskExecutor", "ExecutorError", "executor_from", "as_executor"]
 

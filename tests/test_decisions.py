@@ -114,10 +114,12 @@ def test_a_runs_kept_diagnoses_become_records_that_decide_alike(tmp_path):
 
 def test_a_second_mechanism_counts_below_the_share_its_improvement_and_resolved_part_allow():
     # Noise threshold 100, the named model's excess 1000: a second improving by 300 counts while the share's
-    # threshold (1000 s) stays below 300, with 200 of it below the resolved band (half the threshold at
-    # most: 400) - so below s = 0.3; with only 100 resolved, below s = 0.2 (the resolved part binds).
+    # threshold (1000 s) stays below 300, with 200 of it below the resolved band (RESOLVED_MIN of the
+    # threshold at most: 200 / RESOLVED_MIN / 1000 = 0.69) - so below s = 0.3; with only 50 resolved, below
+    # s = 50 / (RESOLVED_MIN 1000) = 0.17 (the resolved part binds).
     from dragline.benchmarks._decisions import _flip_share
     from dragline.compare import seconds_of_document
+    from dragline.compare.diagnose._band import RESOLVED_MIN
 
     def doc(resolved):
         return {"second_mechanism": {"noise_threshold": 100.0, "allowance": 0.0, "named_excess": 1000.0,
@@ -127,7 +129,7 @@ def test_a_second_mechanism_counts_below_the_share_its_improvement_and_resolved_
 
     assert seconds_of_document(doc(200.0), 0.29) == ["pulley_inertia"] and seconds_of_document(doc(200.0), 0.31) == []
     assert _flip_share(doc(200.0)) == pytest.approx(0.3, rel=1e-5)
-    assert _flip_share(doc(100.0)) == pytest.approx(0.2, rel=1e-5)
+    assert _flip_share(doc(50.0)) == pytest.approx(50.0 / (RESOLVED_MIN * 1000.0), rel=1e-5)
     # Below the noise threshold it counts at no share.
     assert _flip_share(doc(20.0)) == 0.0
 
@@ -145,3 +147,45 @@ def test_no_record_of_one_mechanism_shows_a_second_at_the_share_in_force():
     assert out["false_seconds"] == 0 and out["in_interval"]
     assert out["set_by"] == 92517 and 0.3 < out["lowest"] < SECOND_EXCESS_SHARE
     assert calibrate_second_share(records, share=0.9 * out["lowest"])["false_seconds"] >= 1
+
+
+def _thresholded(truth, value, best, improvement, resolved, out_of_menu=False):
+    """A record whose threshold is built of its parts: noise 1e4, the model's own error 5e4, a model-error
+    budget of 1e5 at the share 0.25 (so 4e5 per unit share) - 1e5 in all - and resolved share 0.5 then."""
+    record = _record(truth, value, best, 1.0, out_of_menu=out_of_menu)
+    h = record["document"]["hypotheses"][0]
+    h.update(improvement=improvement, resolved_improvement=resolved, significant=improvement > 1e5 and
+             resolved >= 0.5e5, score=improvement / 1e5)
+    record["document"]["null_test"] = {"threshold": 1e5, "noise_threshold": 1e4, "own_error_chi2": 5e4,
+                                       "model_error_allowance": 1e5, "model_error_share_at_full": 0.25}
+    record["document"]["settings"] = {"resolved_min": 0.5}
+    return record
+
+
+def test_the_threshold_constants_are_calibrated_between_the_cases_that_bound_them():
+    # The model-error share: a recording with nothing added whose stand-in gains 2e5 is held back only by a
+    # budget above 2e5 (share > 0.5); a right name gaining 3e5 is lost from 3e5 (share 0.75). The resolved
+    # share: a right name with 0.4 of the threshold below the band, a false one with 0.2 (gaining 2.5e5 but
+    # held back by the budget only from share 0.625): 0.2 to 0.4 at the share in force, 0.25.
+    from dragline.compare import rethresholded
+
+    records = [_thresholded("none", 0.0, "rope_bending_damping", 2e5, 2e5),
+               _thresholded("aero_drag", 1.0, "aero_drag", 3e5, 3e5)]
+    rules = DecisionRules(model_error_share=0.25, resolved_min=0.5)
+    assert calibrate_decisions(records, rules)["current"] == {"right": 1, "false_names": 1}
+    share = calibrate_decisions(records, rules)["constants"]["model_error_share"]
+    assert (share["right"], share["false_names"]) == (2, 0)
+    assert share["intervals"] == [[pytest.approx(0.5), pytest.approx(0.75)]] and not share["in_interval"]
+    records = [_thresholded("pulley_friction", 0.01, "pulley_friction", 3e5, 0.4e5),
+               _thresholded("none", 0.0, "chain_link_friction", 2.5e5, 0.2e5)]
+    resolved = calibrate_decisions(records, rules)["constants"]["resolved_min"]
+    assert (resolved["right"], resolved["false_names"]) == (2, 0)
+    assert resolved["intervals"] == [[pytest.approx(0.2), pytest.approx(0.4)]] and not resolved["in_interval"]
+    # The rebuilt threshold is the largest of its parts: the budget at share 0.3 (1.2e5), the own error at 0.1.
+    assert rethresholded(records[0]["document"], DecisionRules(model_error_share=0.3))[1] == pytest.approx(1.2e5)
+    assert rethresholded(records[0]["document"], DecisionRules(model_error_share=0.1))[1] == pytest.approx(5e4)
+    # A document without the threshold's parts cannot be re-thresholded, and says so.
+    bare = _record("aero_drag", 1.85, "aero_drag", 2.2)["document"]
+    bare["settings"] = {"resolved_min": 0.5}
+    with pytest.raises(ValueError, match="lacks noise_threshold, model_error_allowance, own_error_chi2"):
+        verdict_of_document(bare, DecisionRules(resolved_min=0.3))

@@ -25,14 +25,32 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["RESOLVED_HZ", "RESOLVED_MIN", "band_improvement"]
+__all__ = ["RESOLVED_HZ", "RESOLVED_MIN", "band_improvement", "significance"]
 
 # Between the bodies' swing (below 3 Hz) and the ropes' and chains' own
 # modes (above 10 Hz), where the model's discretization changes the motion.
 RESOLVED_HZ = 5.0
 # A candidate's improvement below RESOLVED_HZ must reach this share of the
-# significance threshold.
-RESOLVED_MIN = 0.5
+# significance threshold. Calibrated (``dragline bench decisions``) on the
+# 120 kept diagnoses of the trusted-verdict set's seeds 92 and 94: from
+# 0.244 to 0.329 it gives the most right verdicts (108) with no false name;
+# below, a recording with nothing added names bending damping (case 94542),
+# above, a chain-link friction of 0.0176 is held back (94506). The middle;
+# 0.5 before, placed. The false name it was made for (bending damping 1.3
+# times the threshold with 6 % of its gain below 5 Hz) lies far under it.
+RESOLVED_MIN = 0.29
+
+
+def significance(improvement, resolved_improvement, value, threshold, resolved_min=RESOLVED_MIN):
+    """(significant, unresolved) of a candidate's held-out evidence against ``threshold``.
+
+    Beyond the threshold with a value above zero, and below ``RESOLVED_HZ``
+    at least ``resolved_min`` of the threshold: significant; beyond it only
+    with the band above: unresolved (named in the reason, not the verdict).
+    """
+    beyond = bool(improvement > threshold and value > 0)
+    resolved_ok = resolved_improvement >= resolved_min * threshold
+    return beyond and resolved_ok, beyond and not resolved_ok
 
 
 def band_improvement(problem, residual_before, residual_after, cutoff_hz=RESOLVED_HZ):

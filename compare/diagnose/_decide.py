@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ._band import RESOLVED_HZ
+from ._band import RESOLVED_HZ, RESOLVED_MIN, significance
 from ._updating import BOUND_TOLERANCES
 
-__all__ = ["decide", "DecisionRules", "verdict_of_document", "leftover_share", "model_error_share", "EXPLAINED_MIN",
+__all__ = ["decide", "DecisionRules", "verdict_of_document", "rethresholded", "leftover_share", "model_error_share", "EXPLAINED_MIN",
            "ADEQUATE_RMS", "LEFTOVER_SHARE",
            "CONFOUNDED", "MODEL_ERROR_SHARE", "MODEL_ERROR_FULL"]
 
@@ -53,13 +53,22 @@ MODEL_ERROR_FULL = 0.5
 
 @dataclass(frozen=True)
 class DecisionRules:
-    """The constants ``decide``'s rules 4b, 5 and 5b read (the module's by default): another set is how a
-    calibration asks what the verdicts would have been (``verdict_of_document``)."""
+    """The verdict's constants (the modules' by default): another set is how a calibration asks what the
+    verdicts would have been (``verdict_of_document``).
+
+    ``decide``'s rules 4b, 5 and 5b read the first four. The last two set
+    what it is given: the threshold's model-error budget
+    (``MODEL_ERROR_SHARE``) and the share of the threshold a candidate
+    must reach below the band the model resolves (``_band.RESOLVED_MIN``);
+    ``verdict_of_document`` applies them to a document's own statistics.
+    """
 
     confounded: float = CONFOUNDED
     explained_min: float = EXPLAINED_MIN
     adequate_rms: float = ADEQUATE_RMS
     leftover_share: float = LEFTOVER_SHARE
+    model_error_share: float = MODEL_ERROR_SHARE
+    resolved_min: float = RESOLVED_MIN
 
 
 def model_error_share(excess, n_weighted):
@@ -272,10 +281,47 @@ def verdict_of_document(document, rules=None):
         second mechanism) are not rerun: with other constants a document whose
         verdict came from a second round reads that round's hypotheses.
     """
+    rules = rules or DecisionRules()
     null = document["null_test"]
     beyond = document.get("offsets_beyond_tolerance")
     offsets_ok = not beyond if beyond is not None else not document["reason"].startswith("constant offsets beyond")
     after = document.get("mismatch_after") or {}
-    return decide(document["hypotheses"], null["threshold"], document["mismatch_updated"], after.get("entries", []),
+    hypotheses, threshold = rethresholded(document, rules)
+    return decide(hypotheses, threshold, document["mismatch_updated"], after.get("entries", []),
                   offsets_ok=offsets_ok, offsets_note="", noise_threshold=null.get("noise_threshold"),
                   rules=rules)[0]
+
+
+def rethresholded(document, rules):
+    """A document's hypotheses and threshold under ``rules``' model-error share and resolved share.
+
+    The threshold is the largest of the noise's, the model-error budget
+    (``model_error_allowance``, which scales with the share) and the
+    model's own error (``null_test``); significance follows
+    (``_band.significance``). Where the best significant candidate changes,
+    the mismatch it leaves is the first best's, which the document holds:
+    the re-decision is exact only where the best stays (the calibration
+    counts those that do not).
+
+    Returns
+    -------
+    hypotheses : list of dict
+    threshold : float
+    """
+    null = document["null_test"]
+    share_then = null.get("model_error_share_at_full", MODEL_ERROR_SHARE)
+    resolved_then = document.get("settings", {}).get("resolved_min", RESOLVED_MIN)
+    if rules.model_error_share == share_then and rules.resolved_min == resolved_then:
+        return document["hypotheses"], null["threshold"]
+    missing = [k for k in ("noise_threshold", "model_error_allowance", "own_error_chi2") if null.get(k) is None]
+    if missing:
+        raise ValueError(f"the document's null test lacks {', '.join(missing)}: its threshold cannot be rebuilt")
+    allowance = null["model_error_allowance"] * rules.model_error_share / share_then
+    threshold = max(null["noise_threshold"], allowance, null["own_error_chi2"])
+    hypotheses = []
+    for h in document["hypotheses"]:
+        significant, unresolved = significance(h["improvement"], h.get("resolved_improvement", h["improvement"]),
+                                               h["parameters"][h["main_parameter"]], threshold, rules.resolved_min)
+        hypotheses.append(dict(h, significant=significant, unresolved=unresolved,
+                               score=h["improvement"] / threshold))
+    return hypotheses, threshold

@@ -13,7 +13,7 @@ significant second one is reported beside it.
 from __future__ import annotations
 
 from ...simulate import make_mechanism
-from ._band import RESOLVED_MIN, band_improvement
+from ._band import band_improvement, significance
 from ._hypotheses import fit_candidates, null_threshold, score_candidate
 
 __all__ = ["second_round", "is_second", "seconds_of_document"]
@@ -22,7 +22,7 @@ __all__ = ["second_round", "is_second", "seconds_of_document"]
 def is_second(improvement, resolved, value, at_bound, threshold):
     """Whether a candidate fitted on top of the named one counts: beyond ``threshold`` (chi2), inside its
     range, and beyond ``_band.RESOLVED_MIN`` of the threshold below ``_band.RESOLVED_HZ``."""
-    return bool(improvement > threshold and value > 0 and not at_bound and resolved >= RESOLVED_MIN * threshold)
+    return significance(improvement, resolved, value, threshold)[0] and not at_bound
 
 
 def seconds_of_document(document, share):

@@ -74,6 +74,7 @@ class NullTest:
     excess: float
     share: float
     own_error: float
+    n_weighted: float | None = None  # the noise expectation the excess is measured from
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ import numpy as np
 from ...simulate import make_mechanism, simulate
 from .._align import MAX_OFFSET, check_table, maneuver_stop_time, reels_stop_time
 from .._compare import channel_kind
-from ._band import RESOLVED_MIN, band_improvement
+from ._band import band_improvement, significance
 from ._decide import decide, leftover_share, model_error_share
 from ._hypotheses import (
     REFINE_XATOL,
@@ -480,7 +480,8 @@ def test_against_noise(state):
     allowance = share * excess
     own = own_error_weight(state.model_error_block)
     null = NullTest(threshold=max(threshold, allowance, own), noise_threshold=threshold, surrogate_quantile=q,
-                    kappa=kappa, allowance=allowance, excess=excess, share=share, own_error=own)
+                    kappa=kappa, allowance=allowance, excess=excess, share=share, own_error=own,
+                    n_weighted=float(problem.n_weighted))
     return replace(state, null=null)
 
 
@@ -573,8 +574,7 @@ def score_hypotheses(state):
         n_w = problem.n_weighted
         # Evidence only where the model does not resolve the motion is not
         # evidence (``_band``).
-        beyond = bool(s["improvement"] > threshold and value > 0)
-        resolved_ok = band["resolved"] >= RESOLVED_MIN * threshold
+        significant, unresolved = significance(s["improvement"], band["resolved"], value, threshold)
         hypotheses.append({
             "name": c["name"],
             "main_parameter": main,
@@ -588,8 +588,8 @@ def score_hypotheses(state):
             "improvement": s["improvement"],
             "threshold": threshold,
             "score": s["improvement"] / threshold,
-            "significant": beyond and resolved_ok,
-            "unresolved": beyond and not resolved_ok,
+            "significant": significant,
+            "unresolved": unresolved,
             "resolved_share": band["resolved_share"],
             "resolved_improvement": band["resolved"],
             "signature_match": sig_match,
