@@ -27,7 +27,13 @@ import json
 import math
 import os
 
-from dragline.compare import SECOND_EXCESS_SHARE, DecisionRules, rethresholded, seconds_of_document, verdict_of_document
+from dragline.compare import (
+    SECOND_EXCESS_SHARE,
+    DecisionRules,
+    rethresholded,
+    seconds_of_document,
+    verdict_of_document,
+)
 
 from ._discovery import verdict_right
 

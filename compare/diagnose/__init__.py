@@ -44,5 +44,5 @@ from ._scale import FREE_HZ, MachineScale, machine_scale
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
            "write_diagnosis_report", "candidate_list", "draw_held_out", "leave_one_out", "MachineScale",
-           "machine_scale", "FREE_HZ", "detection_thresholds", "DecisionRules", "verdict_of_document", "rethresholded",
-           "seconds_of_document", "SECOND_EXCESS_SHARE"]
+           "machine_scale", "FREE_HZ", "detection_thresholds", "DecisionRules", "verdict_of_document",
+           "rethresholded", "seconds_of_document", "SECOND_EXCESS_SHARE"]

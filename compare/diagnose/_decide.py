@@ -11,8 +11,8 @@ from dataclasses import dataclass
 from ._band import RESOLVED_HZ, RESOLVED_MIN, significance
 from ._updating import BOUND_TOLERANCES
 
-__all__ = ["decide", "DecisionRules", "verdict_of_document", "rethresholded", "leftover_share", "model_error_share", "EXPLAINED_MIN",
-           "ADEQUATE_RMS", "LEFTOVER_SHARE",
+__all__ = ["decide", "DecisionRules", "verdict_of_document", "rethresholded", "leftover_share", "model_error_share",
+           "EXPLAINED_MIN", "ADEQUATE_RMS", "LEFTOVER_SHARE",
            "CONFOUNDED", "MODEL_ERROR_SHARE", "MODEL_ERROR_FULL"]
 
 # A structured mismatch left: the best must explain this share of it.
