@@ -449,15 +449,15 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     step; from the updated rig as well when the fit from nominal ends above
     the updated rig's objective (with the mechanism or without it: adding a
     mechanism can only lower it, so that fit has not converged), and the
-    lower of the two is kept. From the
-    updated rig alone (the lower start) the fit walked back slowly along the
-    valley where the parameters had compensated the mechanism: sheave
-    inertias 9-18 % low at 1.0-1.6 times the objective the nominal start
-    reached (benchmark seed 96); a spurious candidate, which the updated rig
-    already fits, ends lower from there (a no-physics recording's bending
-    damping: 64,900 from the updated rig, 67,400 from nominal). Fitting the value after the
-    parameters instead (a Brent search on the rig they reached) left the
-    parameters where they had compensated the first fit's value: on a
+    lower of the two is kept. From the updated rig alone (the lower start)
+    the fit walked back slowly along the valley where the parameters had
+    compensated the mechanism: sheave inertias 9-18 % low at 1.0-1.6 times
+    the objective the nominal start reached (benchmark seed 96); a spurious
+    candidate, which the updated rig already fits, ends lower from there (a
+    no-physics recording's bending damping: 64,900 from the updated rig,
+    67,400 from nominal). Fitting the value after the parameters instead (a
+    Brent search on the rig they reached) left the parameters where they
+    had compensated the first fit's value: on a
     gantry crane with air drag cd 0.9, fitted at 0.71 on the updated rig,
     the masses went to their bounds and the fit stayed 1.2 times the
     objective at the truth.
@@ -513,7 +513,7 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
         # (with the mechanism or without it) has not converged, and the updated start is fitted too.
         updated_objective = min([o[0] for o in options if o[4] == "updated"] + [_update_objective(update)])
         fits = []
-        for objective0, coords, sim, state, label in options:
+        for _, coords, sim, state, label in options:
             if fits and fits[-1].objective <= updated_objective:
                 break
             sens, _ = _sensitivities(pool, coords, active, scale, sim, state, [*update["sensitivities"], None])
@@ -635,7 +635,7 @@ def joint_value_bounds(value, value_range=None):
     parameters had taken up part of the mechanism's effect, so it is biased
     towards no mechanism by as much as the parameters could take up. A span
     of exp(+-0.4) about it held 10 of 18 sheave inertias of three benchmark
-    seeds at its edge, 11-40 % under the truth (docs/diagnosis.md). Without
+    seeds at its edge, 11-41 % under the truth (docs/diagnosis.md). Without
     a range (a caller's own candidate), ln p is free.
     """
     if value_range is None:
