@@ -88,3 +88,40 @@ def test_the_signatures_slope_is_the_secant_across_the_optimum_over_a_slope_not_
     refitted = [*points, (0.0202, sim(0.0202) + 5.0, None)]
     assert _signature_slope(refitted, 0.02, refitted=True) == pytest.approx(slope, rel=1e-12)
     assert _signature_slope(points[:2], 0.02, refitted=False) is None
+
+
+def _scored(value=0.02, curvature=4.0e4, improvement=1.0e5):
+    """A candidate's fit whose chi2(ln p) is a parabola of the given curvature about ``value``."""
+    xs = math.log(value) + np.array([-0.2, -0.1, 0.0, 0.1, 0.2])
+    profile = [(math.exp(x), 1.0e6 + curvature * (x - math.log(value)) ** 2) for x in xs]
+    return {"value": value, "profile": profile, "fold_values": [value, value], "at_bound": None,
+            "improvement": improvement}
+
+
+def test_the_model_errors_part_along_the_signature_moves_a_linear_fit_as_the_interval_states():
+    """Linear least squares: a signature g (its chi2 D = |g|^2 the improvement it brings) and a model error e
+    of chi2 E whose share s^2 lies along g move the fitted amplitude by s sqrt(E / D); with s the calibrated
+    ERROR_ALONG_SIGNATURE that shift is the stated term, and it joins the rest in quadrature."""
+    from dragline.compare.diagnose._summary import ERROR_ALONG_SIGNATURE, stated_uncertainty
+
+    rng = np.random.default_rng(7)
+    n, D, E = 5000, 4.0e5, 5.0e4
+    g = rng.normal(size=n)
+    g *= math.sqrt(D) / np.linalg.norm(g)
+    other = rng.normal(size=n)
+    other -= (other @ g) / D * g
+    s = ERROR_ALONG_SIGNATURE
+    e = math.sqrt(E) * (s * g / math.sqrt(D) + math.sqrt(1 - s * s) * other / np.linalg.norm(other))
+    shift = ((g + e) @ g) / D - 1.0  # the truth's amplitude is 1; d ln p = d p / p there
+    base = stated_uncertainty(_scored(improvement=D), "mu", kappa=1.0)
+    with_error = stated_uncertainty(_scored(improvement=D), "mu", kappa=1.0, own_error=E)
+    assert with_error["model_error_relative"] == pytest.approx(shift, rel=0.01)
+    assert with_error["relative"] ** 2 == pytest.approx(base["relative"] ** 2 + shift**2, rel=0.02)
+    assert base["model_error_relative"] is None
+
+
+def test_a_fit_that_improves_no_held_out_data_states_no_interval():
+    from dragline.compare.diagnose._summary import stated_uncertainty
+
+    out = stated_uncertainty(_scored(improvement=-10.0), "mu", kappa=1.0, own_error=5.0e4)
+    assert out["relative"] is None and out["interval_68"] is None and out["interval_95"] is None
