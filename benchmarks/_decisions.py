@@ -36,6 +36,7 @@ from dragline.compare import (
 )
 
 from ._discovery import verdict_right
+from ._intervals import calibrate_error_along, interval_summary_lines, load_interval_records
 
 __all__ = ["decision_records", "write_decision_records", "calibrate_decisions", "summary_lines", "RECORDS"]
 
@@ -300,7 +301,8 @@ def summary_lines(report):
 
 
 def bench_command(args):
-    """``dragline bench decisions [--records FILE ...]``: the calibration on the committed or given records."""
+    """``dragline bench decisions [--records FILE ...]``: the calibration on the committed or given records, and
+    the stated interval's constants on the committed interval records (``_intervals``)."""
     records = []
     for path in args.records or [RECORDS]:
         with open(path, encoding="utf-8") as f:
@@ -310,4 +312,5 @@ def bench_command(args):
                 raise ValueError(f"{path}: not a decision records file ({exc!r})") from None
     report = calibrate_decisions(records)
     report["second_excess_share"] = calibrate_second_share(records)
-    return report, summary_lines(report)
+    report["intervals"] = calibrate_error_along(load_interval_records())
+    return report, summary_lines(report) + interval_summary_lines(report["intervals"])

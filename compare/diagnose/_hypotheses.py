@@ -55,8 +55,9 @@ best evaluated points): ``sigma_ln_p = sqrt(kappa / a)``, ``kappa`` the
 residual's dispersion (``chi2_min / N``, at least 1) times its integrated
 autocorrelation time; reported with the two folds' estimates. The stated
 uncertainty (``_summary.stated_uncertainty``) is the largest of this
-profile, the fold spread, a floor for systematic bias and the marginal with
-the rig's parameters free (``_updating.marginal_uncertainty``).
+profile, the fold spread, the search's resolution and the marginal with
+the rig's parameters free (``_updating.marginal_uncertainty``), with the
+model's own error along the signature in quadrature.
 """
 
 from __future__ import annotations
