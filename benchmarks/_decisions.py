@@ -43,8 +43,9 @@ __all__ = ["decision_records", "write_decision_records", "calibrate_decisions", 
 RECORDS = os.path.join(os.path.dirname(__file__), "data", "decision_records.json")
 """The committed calibration records: the trusted-verdict set's seeds 92 and 94 (docs/diagnosis.md)."""
 
-# The model-error share in force for documents written before their null test named it (seeds 92-98).
+# The model-error share and its full excess in force for documents written before their null test named them.
 MODEL_ERROR_SHARE_BEFORE_KEY = 0.25
+MODEL_ERROR_FULL_BEFORE_KEY = 0.5
 _HYPOTHESIS_KEYS = ("name", "main_parameter", "parameters", "improvement", "significant", "unresolved",
                     "resolved_improvement", "at_bound", "score", "explained_fraction", "rms_before", "rms_after",
                     "leftover_share", "credit_at_joint_rig", "leads", "nuisance_correlation")
@@ -65,6 +66,31 @@ def _hypothesis(h):
     return out
 
 
+def _n_weighted(doc):
+    """The noise expectation (weighted samples) of a document written before its null test kept it.
+
+    Each held-out RMS (in noise sigmas) is sqrt(held-out chi2 / it), and the
+    improvement is the two chi2s' gap; where no candidate moved the held-out
+    chi2, an unsaturated budget gives it (share excess^2 / (full n)). A
+    saturated one bounds it only (at most excess / full); no candidate
+    improving, the verdict is the same at any such value, and the bound is
+    kept.
+    """
+    for h in doc["hypotheses"]:
+        gap = h.get("rms_before", 0.0) ** 2 - h.get("rms_after", 0.0) ** 2
+        if h.get("improvement") and abs(gap) > 1e-9:
+            return float(h["improvement"] / gap)
+    null = doc["null_test"]
+    excess, allowance = null.get("excess_chi2_updated"), null.get("model_error_allowance")
+    if not excess or not allowance:
+        return None
+    share = null.get("model_error_share_at_full", MODEL_ERROR_SHARE_BEFORE_KEY)
+    full = null.get("model_error_full", MODEL_ERROR_FULL_BEFORE_KEY)
+    if allowance < share * excess * (1.0 - 1e-9):
+        return float(share * excess**2 / (full * allowance))
+    return float(excess / full)
+
+
 def _document(doc):
     """What ``verdict_of_document`` reads of a diagnosis document, and nothing else: of the mismatch left,
     whether there is one, and where it is largest."""
@@ -79,9 +105,12 @@ def _document(doc):
         "hypotheses": [_hypothesis(h) for h in doc["hypotheses"]],
         # The threshold's parts, so that the model-error share and the resolved share can be moved too.
         "null_test": {**{k: doc["null_test"].get(k) for k in ("threshold", "noise_threshold",
-                                                               "model_error_allowance", "own_error_chi2")},
+                                                               "model_error_allowance", "own_error_chi2",
+                                                               "excess_chi2_updated")},
                       "model_error_share_at_full": doc["null_test"].get("model_error_share_at_full",
-                                                                        MODEL_ERROR_SHARE_BEFORE_KEY)},
+                                                                        MODEL_ERROR_SHARE_BEFORE_KEY),
+                      "model_error_full": doc["null_test"].get("model_error_full", MODEL_ERROR_FULL_BEFORE_KEY),
+                      "n_weighted": doc["null_test"].get("n_weighted") or _n_weighted(doc)},
         "settings": {k: v for k, v in doc.get("settings", {}).items() if k == "resolved_min"},
         "mismatch_updated": [{k: e[k] for k in _MISMATCH_KEYS} for e in doc["mismatch_updated"][:1]],
         "mismatch_after": {"entries": [{k: e[k] for k in _MISMATCH_KEYS} for e in after.get("entries", [])[:1]]},
@@ -175,6 +204,18 @@ def _statistics(records, field, base):
                 for x in (h["improvement"], h.get("resolved_improvement", 0.0) / base.resolved_min, credit):
                     if x is not None and x > 0:
                         values.add(float(x / per_share))
+            continue
+        if field == "model_error_full":  # where the unsaturated budget crosses a gain, and where it saturates
+            null = doc["null_test"]
+            excess, n_w = null.get("excess_chi2_updated"), null.get("n_weighted")
+            if not null.get("model_error_allowance") or not excess or not n_w:
+                continue
+            values.add(float(excess / n_w))
+            for h in doc["hypotheses"]:
+                credit = (h.get("credit_at_joint_rig") or {}).get("credit")
+                for x in (h["improvement"], h.get("resolved_improvement", 0.0) / base.resolved_min, credit):
+                    if x is not None and x > 0:
+                        values.add(float(base.model_error_share * excess**2 / (x * n_w)))
             continue
         if field == "resolved_min":
             _, threshold = rethresholded(doc, base)

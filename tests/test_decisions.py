@@ -189,3 +189,31 @@ def test_the_threshold_constants_are_calibrated_between_the_cases_that_bound_the
     bare["settings"] = {"resolved_min": 0.5}
     with pytest.raises(ValueError, match="lacks noise_threshold, model_error_allowance, own_error_chi2"):
         verdict_of_document(bare, DecisionRules(resolved_min=0.3))
+
+
+def _budgeted(truth, value, best, improvement):
+    """A record whose budget is not yet full: excess 4e5 over an expectation of 1e6 (0.4 of it, under the
+    full excess 0.5), so the share 0.25 is scaled to 0.2 and the budget is 8e4 = 4e4 / full."""
+    record = _thresholded(truth, value, best, improvement, improvement)
+    record["document"]["null_test"] = {"threshold": 8e4, "noise_threshold": 1e4, "own_error_chi2": 5e4,
+                                       "model_error_allowance": 8e4, "model_error_share_at_full": 0.25,
+                                       "model_error_full": 0.5, "excess_chi2_updated": 4e5, "n_weighted": 1e6}
+    record["document"]["hypotheses"][0]["significant"] = improvement > 8e4
+    return record
+
+
+def test_the_full_excess_is_calibrated_where_the_scaled_budget_crosses_the_cases_gains():
+    # The budget 4e4 / full (until it saturates at 1e5, full 0.4): a stand-in gaining 9e4 on a recording with
+    # nothing added is held back below full 4e4 / 9e4 = 0.444; a right name gaining 9.5e4 is kept above
+    # 4e4 / 9.5e4 = 0.421. Between them both are right; at the 0.5 in force the stand-in is a false name.
+    records = [_budgeted("none", 0.0, "rope_bending_damping", 9e4), _budgeted("aero_drag", 1.0, "aero_drag", 9.5e4)]
+    rules = DecisionRules(model_error_share=0.25, resolved_min=0.5, model_error_full=0.5)
+    assert calibrate_decisions(records, rules)["current"] == {"right": 1, "false_names": 1}
+    full = calibrate_decisions(records, rules)["constants"]["model_error_full"]
+    assert (full["right"], full["false_names"]) == (2, 0)
+    assert full["intervals"] == [[pytest.approx(4 / 9.5), pytest.approx(4 / 9)]] and not full["in_interval"]
+    # saturated below 0.4: the share itself, 1e5
+    from dragline.compare import rethresholded
+
+    assert rethresholded(records[0]["document"], DecisionRules(model_error_full=0.3))[1] == pytest.approx(1e5)
+    assert rethresholded(records[0]["document"], DecisionRules(model_error_full=0.8))[1] == pytest.approx(5e4)

@@ -56,11 +56,12 @@ class DecisionRules:
     """The verdict's constants (the modules' by default): another set is how a calibration asks what the
     verdicts would have been (``verdict_of_document``).
 
-    ``decide``'s rules 4b, 5 and 5b read the first four. The last two set
+    ``decide``'s rules 4b, 5 and 5b read the first four. The last three set
     what it is given: the threshold's model-error budget
-    (``MODEL_ERROR_SHARE``) and the share of the threshold a candidate
-    must reach below the band the model resolves (``_band.RESOLVED_MIN``);
-    ``verdict_of_document`` applies them to a document's own statistics.
+    (``MODEL_ERROR_SHARE``, reached at ``MODEL_ERROR_FULL``) and the share
+    of the threshold a candidate must reach below the band the model
+    resolves (``_band.RESOLVED_MIN``); ``verdict_of_document`` applies them
+    to a document's own statistics.
     """
 
     confounded: float = CONFOUNDED
@@ -69,9 +70,10 @@ class DecisionRules:
     leftover_share: float = LEFTOVER_SHARE
     model_error_share: float = MODEL_ERROR_SHARE
     resolved_min: float = RESOLVED_MIN
+    model_error_full: float = MODEL_ERROR_FULL
 
 
-def model_error_share(excess, n_weighted):
+def model_error_share(excess, n_weighted, share=MODEL_ERROR_SHARE, full=MODEL_ERROR_FULL):
     """The share of the updated model's excess chi2 a mechanism must beat: the model-error budget.
 
     Parameters
@@ -80,15 +82,17 @@ def model_error_share(excess, n_weighted):
         chi2 the updated model leaves above its noise expectation.
     n_weighted : float
         That expectation (the weighted number of samples).
+    share, full : float
+        The share at a large excess and the excess (per expected chi2) it is reached at.
 
     Returns
     -------
     float
-        ``MODEL_ERROR_SHARE`` times ``min(1, excess / (MODEL_ERROR_FULL n_weighted))``.
+        ``share`` times ``min(1, excess / (full n_weighted))``.
     """
     if n_weighted <= 0:
-        return MODEL_ERROR_SHARE
-    return MODEL_ERROR_SHARE * min(1.0, max(0.0, excess) / (MODEL_ERROR_FULL * n_weighted))
+        return share
+    return share * min(1.0, max(0.0, excess) / (full * n_weighted))
 
 
 def _no_lead(best, rival, noise):
@@ -293,7 +297,8 @@ def verdict_of_document(document, rules=None):
 
 
 def rethresholded(document, rules):
-    """A document's hypotheses and threshold under ``rules``' model-error share and resolved share.
+    """A document's hypotheses and threshold under ``rules``' model-error share, its full excess and resolved
+    share.
 
     The threshold is the largest of the noise's, the model-error budget
     (``model_error_allowance``, which scales with the share) and the
@@ -310,13 +315,24 @@ def rethresholded(document, rules):
     """
     null = document["null_test"]
     share_then = null.get("model_error_share_at_full", MODEL_ERROR_SHARE)
+    full_then = null.get("model_error_full", MODEL_ERROR_FULL)
     resolved_then = document.get("settings", {}).get("resolved_min", RESOLVED_MIN)
-    if rules.model_error_share == share_then and rules.resolved_min == resolved_then:
+    if (rules.model_error_share, rules.resolved_min, rules.model_error_full) == (share_then, resolved_then, full_then):
         return document["hypotheses"], null["threshold"]
-    missing = [k for k in ("noise_threshold", "model_error_allowance", "own_error_chi2") if null.get(k) is None]
+    needed = ["noise_threshold", "model_error_allowance", "own_error_chi2"]
+    if rules.model_error_full != full_then:
+        needed += ["excess_chi2_updated", "n_weighted"]
+    missing = [k for k in needed if null.get(k) is None]
     if missing:
         raise ValueError(f"the document's null test lacks {', '.join(missing)}: its threshold cannot be rebuilt")
-    allowance = null["model_error_allowance"] * rules.model_error_share / share_then
+    if rules.model_error_full == full_then:
+        allowance = null["model_error_allowance"] * rules.model_error_share / share_then
+    elif null["model_error_allowance"] == 0.0:  # no budget then (nothing updated): none now
+        allowance = 0.0
+    else:
+        excess = null["excess_chi2_updated"]
+        allowance = model_error_share(excess, null["n_weighted"], rules.model_error_share,
+                                      rules.model_error_full) * excess
     threshold = max(null["noise_threshold"], allowance, null["own_error_chi2"])
     hypotheses = []
     for h in document["hypotheses"]:

@@ -28,7 +28,7 @@ from ...simulate import SimulationError, StaticsError, default_maneuver, load_ri
 from .._executor import as_executor
 from .._machine_figure import picture_at
 from ._band import RESOLVED_HZ, RESOLVED_MIN
-from ._decide import MODEL_ERROR_SHARE
+from ._decide import MODEL_ERROR_FULL, MODEL_ERROR_SHARE
 from ._hypotheses import BLOCK_S, DECAY_WEIGHT, MIN_IMPROVEMENT, NULL_QUANTILE, NULL_SURROGATES
 from ._leave_one_out import leave_one_out as _leave_one_out
 from ._locate import LOWPASS_S, structure_threshold
@@ -259,7 +259,8 @@ def diagnosis_of(state):
                       "dispersion_kappa": null.kappa, "model_error_allowance": null.allowance,
                       "own_error_chi2": null.own_error,
                       "excess_chi2_updated": null.excess, "model_error_share": null.share,
-                      "model_error_share_at_full": MODEL_ERROR_SHARE, "n_weighted": null.n_weighted},
+                      "model_error_share_at_full": MODEL_ERROR_SHARE, "model_error_full": MODEL_ERROR_FULL,
+                      "n_weighted": null.n_weighted},
         "channels": {c: {"noise": float(rec.noise[j]), "offset": state.offsets[c], "offset_nominal": float(b0[j]),
                          "structure_threshold": structure_threshold(c, rec.noise[j], rec.lowpass_width,
                                                                     rec.scale)}
