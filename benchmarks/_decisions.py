@@ -42,6 +42,8 @@ __all__ = ["decision_records", "write_decision_records", "calibrate_decisions", 
 
 RECORDS = os.path.join(os.path.dirname(__file__), "data", "decision_records.json")
 """The committed calibration records: the trusted-verdict set's seeds 92 and 94 (docs/diagnosis.md)."""
+PAIR_RECORDS = os.path.join(os.path.dirname(__file__), "data", "pair_records.json")
+"""The committed two-mechanism records (``_pairs``), which bound ``SECOND_EXCESS_SHARE`` from above."""
 
 # The model-error share and its full excess in force for documents written before their null test named them.
 MODEL_ERROR_SHARE_BEFORE_KEY = 0.25
@@ -297,32 +299,36 @@ def calibrate_decisions(records, rules=None):
     return out
 
 
-def _flip_share(document):
-    """The share of the named model's excess below which ``document``'s second round names a second
-    mechanism (0 where it names none at any share): bisection, the names only shrinking as the share grows."""
-    if not seconds_of_document(document, 0.0):
-        return 0.0
-    lo, hi = 0.0, 1.0
-    while seconds_of_document(document, hi):
-        lo, hi = hi, 2.0 * hi
-    while hi - lo > 1e-6 * hi:
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if seconds_of_document(document, mid) else (lo, mid)
-    return hi
+def calibrate_second_share(records, share=SECOND_EXCESS_SHARE, pairs=()):
+    """``SECOND_EXCESS_SHARE`` between records where every second is false and records where it is true.
 
-
-def calibrate_second_share(records, share=SECOND_EXCESS_SHARE):
-    """``SECOND_EXCESS_SHARE`` against records of one hidden mechanism or none, where every second is false.
-
-    Such records bound the share from below only: the least share at which none of them shows a second
-    mechanism (``lowest``, with the case that sets it, ``set_by``). A bound from above needs recordings
-    with two mechanisms (docs/diagnosis.md: the one in the tests takes 64 % of the excess).
+    ``records`` (one hidden mechanism or none) bound the share from below:
+    the least share at which none of them shows a second mechanism
+    (``lowest``, with the case that sets it, ``set_by``). ``pairs``
+    (``_pairs.pair_records``: two hidden, the verdict naming one) bound it
+    from above: the least share up to which every such record still names
+    the other (``highest``, ``highest_set_by``); a record whose other is
+    named at no share bounds nothing (``never_named``).
     """
-    flips = {record["seed"]: _flip_share(record["document"]) for record in records}
+    from ._pairs import second_share
+
+    flips = {record["seed"]: second_share(record["document"]) for record in records}
     set_by = max(flips, key=flips.get) if flips else None
-    return {"value": share, "lowest": flips.get(set_by, 0.0), "set_by": set_by, "n_records": len(records),
+    lowest = flips.get(set_by, 0.0)
+    others = {}
+    for r in pairs:
+        other = {r["truth"]: r["second"], r["second"]: r["truth"]}.get(r["verdict"])
+        if other is not None:
+            others[r["seed"]] = second_share(r["document"], other)
+    named = {seed: s for seed, s in others.items() if s > 0.0}
+    high_by = min(named, key=named.get) if named else None
+    highest = named.get(high_by, math.inf)
+    return {"value": share, "lowest": lowest, "set_by": set_by, "n_records": len(records),
             "false_seconds": sum(bool(seconds_of_document(r["document"], share)) for r in records),
-            "in_interval": share > flips.get(set_by, 0.0)}
+            "n_pairs": len(pairs), "highest": None if math.isinf(highest) else highest, "highest_set_by": high_by,
+            "never_named": sorted(seed for seed, s in others.items() if s == 0.0),
+            "missed_seconds": sum(1 for s in named.values() if s <= share),
+            "in_interval": lowest < share < highest}
 
 
 def summary_lines(report):
@@ -338,6 +344,11 @@ def summary_lines(report):
     if second is not None:
         lines.append(f"  second_excess_share = {second['value']:g}: {second['false_seconds']} false second mechanisms; "
                      f"none from {second['lowest']:.3g} up (set by case {second['set_by']})")
+        if second.get("highest") is not None:
+            lines.append(f"    and {second['missed_seconds']} of the hidden seconds of {second['n_pairs']} two-mechanism "
+                         f"cases missed; every one named below {second['highest']:.3g} (set by case "
+                         f"{second['highest_set_by']}; named at no share: {second['never_named'] or 'none'})"
+                         + ("" if second["in_interval"] else "  (the value in force is outside)"))
     return lines
 
 
@@ -352,6 +363,10 @@ def bench_command(args):
             except (ValueError, KeyError, TypeError) as exc:
                 raise ValueError(f"{path}: not a decision records file ({exc!r})") from None
     report = calibrate_decisions(records)
-    report["second_excess_share"] = calibrate_second_share(records)
+    pairs = []
+    if os.path.isfile(PAIR_RECORDS):
+        with open(PAIR_RECORDS, encoding="utf-8") as f:
+            pairs = json.load(f)["records"]
+    report["second_excess_share"] = calibrate_second_share(records, pairs=pairs)
     report["intervals"] = calibrate_error_along(load_interval_records())
     return report, summary_lines(report) + interval_summary_lines(report["intervals"])

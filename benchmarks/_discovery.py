@@ -661,12 +661,15 @@ def bench_command(args):
     (with ``args.realism``: another machine's cases, ``_machine_cases``), ``args.quick``,
     ``args.limits`` (the ``LIMIT_CASES`` instead; with ``args.realism``
     the ``REALISTIC_LIMIT_CASES``), ``args.verdict_set`` (with
-    ``args.realism``: ``verdict_cases``), ``args.workers``,
+    ``args.realism``: ``verdict_cases``), ``args.pairs`` (with
+    ``args.realism``: two hidden mechanisms, ``_pairs``), ``args.workers``,
     ``args.scheduler`` (a Dask cluster; also ``DRAGLINE_SCHEDULER``) and
     ``args.keep_diagnoses``.
     """
     import sys
 
+    if getattr(args, "realism", False) and getattr(args, "pairs", False):
+        return _pairs_command(args)
     cases, derivation = None, None
     if getattr(args, "limits", False):
         cases = REALISTIC_LIMIT_CASES if getattr(args, "realism", False) else LIMIT_CASES
@@ -701,3 +704,26 @@ def bench_command(args):
         write_decision_records(os.path.join(keep, "decision_records.json"), decision_records(report, keep, label),
                                origin=f"dragline bench discovery --realism, {label}")
     return report, summary_lines(report)
+
+
+def _pairs_command(args):
+    """``bench discovery --realism --pairs``: the two-mechanism cases, and their records beside the kept
+    diagnoses (``pair_records.json``, for ``bench decisions``)."""
+    import json
+    import sys
+
+    from ._pairs import bench_pairs, pair_records
+    from ._pairs import summary_lines as pair_summary_lines
+
+    keep = getattr(args, "keep_diagnoses", None)
+    report = bench_pairs(seed=args.seed, workers=executor_from(getattr(args, "workers", 2) or 2,
+                                                               getattr(args, "scheduler", None)),
+                         keep=keep, progress=lambda line: print(line, file=sys.stderr))
+    if keep:
+        data = {"origin": f"dragline bench discovery --realism --pairs --seed {args.seed}",
+                "licence": "MIT, as the repository", "records": pair_records(report, keep, f"seed {args.seed}")}
+        path = os.path.join(keep, "pair_records.json")
+        with open(f"{path}.tmp", "w", encoding="utf-8") as f:
+            json.dump(data, f, separators=(",", ":"))
+        os.replace(f"{path}.tmp", path)
+    return report, pair_summary_lines(report)

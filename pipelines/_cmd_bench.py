@@ -25,6 +25,9 @@ def add_parser(sub):
     p.add_argument("--verdict-set", action="store_true",
                    help="discovery --realism: the trusted-verdict set, 60 cases (each candidate at 2, 5 and 20 times "
                         "its detection threshold, twice; 20 with nothing added; 10 out of the menu)")
+    p.add_argument("--pairs", action="store_true",
+                   help="discovery --realism: two hidden mechanisms per case (a dominant one at 20 times its "
+                        "detection threshold, a second at 5 times), which bound the second round's share from above")
     p.add_argument("--rig", metavar="NAME", help="discovery --realism: another built-in machine's cases "
                                                   "(pendulum, slung_load, gantry_crane; default the dragline); "
                                                   "sensitivities: the machine whose parameters are differentiated")

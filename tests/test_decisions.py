@@ -117,7 +117,7 @@ def test_a_second_mechanism_counts_below_the_share_its_improvement_and_resolved_
     # threshold (1000 s) stays below 300, with 200 of it below the resolved band (RESOLVED_MIN of the
     # threshold at most: 200 / RESOLVED_MIN / 1000 = 0.69) - so below s = 0.3; with only 50 resolved, below
     # s = 50 / (RESOLVED_MIN 1000) = 0.17 (the resolved part binds).
-    from dragline.benchmarks._decisions import _flip_share
+    from dragline.benchmarks._pairs import second_share
     from dragline.compare import seconds_of_document
     from dragline.compare.diagnose._band import RESOLVED_MIN
 
@@ -128,10 +128,10 @@ def test_a_second_mechanism_counts_below_the_share_its_improvement_and_resolved_
                                                      "at_bound": None}]}}
 
     assert seconds_of_document(doc(200.0), 0.29) == ["pulley_inertia"] and seconds_of_document(doc(200.0), 0.31) == []
-    assert _flip_share(doc(200.0)) == pytest.approx(0.3, rel=1e-5)
-    assert _flip_share(doc(50.0)) == pytest.approx(50.0 / (RESOLVED_MIN * 1000.0), rel=1e-5)
+    assert second_share(doc(200.0)) == pytest.approx(0.3, rel=1e-5)
+    assert second_share(doc(50.0)) == pytest.approx(50.0 / (RESOLVED_MIN * 1000.0), rel=1e-5)
     # Below the noise threshold it counts at no share.
-    assert _flip_share(doc(20.0)) == 0.0
+    assert second_share(doc(20.0)) == 0.0
 
 
 def test_no_record_of_one_mechanism_shows_a_second_at_the_share_in_force():
@@ -217,3 +217,29 @@ def test_the_full_excess_is_calibrated_where_the_scaled_budget_crosses_the_cases
 
     assert rethresholded(records[0]["document"], DecisionRules(model_error_full=0.3))[1] == pytest.approx(1e5)
     assert rethresholded(records[0]["document"], DecisionRules(model_error_full=0.8))[1] == pytest.approx(5e4)
+
+
+def test_two_mechanism_records_bound_the_second_share_from_above():
+    # A named model's excess of 1000 and a noise threshold of 100: a hidden second improving by 600 (all of it
+    # resolved) is named up to share 0.6, one improving by 80 at no share (below the noise); a one-mechanism
+    # record whose false second improves by 300 is named up to 0.3. So the share lies in 0.3-0.6; 0.7 misses
+    # the hidden second, 0.2 names the false one.
+    from dragline.benchmarks._decisions import calibrate_second_share
+
+    def doc(name, improvement):
+        return {"second_mechanism": {"noise_threshold": 100.0, "allowance": 0.0, "named_excess": 1000.0,
+                                     "candidates": [{"name": name, "parameters": {"x": 1.0}, "improvement": improvement,
+                                                     "resolved_improvement": improvement, "at_bound": None}]}}
+
+    single = [{"seed": 1, "document": doc("pulley_inertia", 300.0)}]
+    pairs = [{"seed": 2, "truth": "aero_drag", "second": "pulley_inertia", "verdict": "aero_drag",
+              "document": doc("pulley_inertia", 600.0)},
+             {"seed": 3, "truth": "aero_drag", "second": "chain_link_friction", "verdict": "chain_link_friction",
+              "document": doc("aero_drag", 80.0)}]
+    out = calibrate_second_share(single, share=0.4, pairs=pairs)
+    assert out["lowest"] == pytest.approx(0.3, rel=1e-5) and out["highest"] == pytest.approx(0.6, rel=1e-5)
+    assert out["highest_set_by"] == 2 and out["never_named"] == [3] and out["in_interval"]
+    assert out["missed_seconds"] == 0 and out["false_seconds"] == 0
+    assert not calibrate_second_share(single, share=0.7, pairs=pairs)["in_interval"]
+    assert calibrate_second_share(single, share=0.7, pairs=pairs)["missed_seconds"] == 1
+    assert not calibrate_second_share(single, share=0.2, pairs=pairs)["in_interval"]
