@@ -211,14 +211,22 @@ def verdict_cases(seed=0):
 
 # Finer than the diagnosis's baseline: the truth's own discretization.
 TRUTH_DISCRETIZATION = "medium"
+# The held-out trial's maneuver (``--verdict-set``): the dig's literal
+# reading (docs/model.md) - the reels' speeds stepped, not ramped, phase 1
+# 2.5 s, the drag 0.48 m/s in phase 3, both reels stopped at 6.5 s - a
+# schedule of the same machine the fit never sees, filmed as a second
+# session of the same truth rig (its own noise, wand and L-frame takes).
+HELD_OUT_MANEUVER = {"phase1_s": 2.5, "phase3_drag_m_s": 0.48, "ramp_s": 0.0}
+HELD_OUT_SEED = 10_000_000  # added to the case's seed for the second session's draws
 
 
-def _truth_world(name, value, seed, effect=True, rig_name=None):
+def _truth_world(name, value, seed, effect=True, rig_name=None, maneuver=None):
     """Truth rig, maneuver (with the drawn reel zeros), discretization, physics and drawn coordinates.
 
     ``effect=False``: the same world without the case's effect (no
     mechanism; the drawn material damping kept), to measure its size.
     ``rig_name``: another machine than the dragline, with its own maneuver.
+    ``maneuver``: another maneuver of the machine (the held-out trial's).
     """
 
     rig = load_rig(rig_name)
@@ -229,7 +237,7 @@ def _truth_world(name, value, seed, effect=True, rig_name=None):
         coords = np.array([math.log(value) if p.field == "viscous_damping" else x for p, x in zip(params, coords)])
     elif effect and name in MECHANISMS:
         physics = [make_mechanism(name, **{MECHANISMS[name].main: value})]
-    truth_rig, truth_maneuver = apply_parameters(rig, default_maneuver(rig), params, coords)
+    truth_rig, truth_maneuver = apply_parameters(rig, maneuver or default_maneuver(rig), params, coords)
     if effect and name == "rope_creep":
         truth_maneuver = creeping(truth_maneuver, value)
     return truth_rig, truth_maneuver, TRUTH_DISCRETIZATION, physics, coords
@@ -281,13 +289,36 @@ def verdict_right(truth, value, out_of_menu, verdict, fitted=None):
     return verdict == truth and fitted is not None and abs(fitted / value - 1.0) <= RIGHT_WITHIN
 
 
-def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_name=None):
+def _film(result, machine, seed, folder, recorded_maneuver, delay_s=None):
+    """``result`` filmed by the rig's own lab (the dragline's built-in one, else six cameras about the
+    machine's markers) and written as a session directory; ``delay_s``: each camera's frames late by up to
+    that (the camera latency case)."""
+    lab = lab_for_rig(machine, marker_positions(result)[1], seed)
+    delays = None if delay_s is None else np.random.default_rng([seed, 1]).uniform(0.0, delay_s, len(lab.cameras))
+    session, _ = synthesize_session(result, lab.cameras, seed=seed, wand_volume=lab.wand_volume,
+                                    lframe=lab.lframe, wand_length=lab.wand_length, camera_delay_s=delays,
+                                    metadata={"generator": "dragline bench discovery", "rig": machine.name})
+    write_session_dir(folder, session, recorded_maneuver)
+
+
+def _held_out_session(name, value, seed, folder, machine, delay_s):
+    """The case's truth on ``HELD_OUT_MANEUVER``, filmed as a second session into ``folder``."""
+    second = dig_maneuver(**HELD_OUT_MANEUVER)
+    rig, maneuver, discretization, physics, _ = _truth_world(name, value, seed, maneuver=second)
+    result = simulate(rig, maneuver, discretization, physics, duration=10.0, rate_hz=200.0)
+    _film(result, machine, seed + HELD_OUT_SEED, folder, second, delay_s)
+
+
+def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_name=None, held_out=False):
     """Make one blind session, diagnose it from its directory alone, score it here.
 
     ``workdir``: where the session is made (a temporary folder of the
     machine that runs the case when None); ``keep``: return the case's
     diagnosis document too (under ``diagnosis``); ``rig_name``: a realistic
-    case on another machine (its own maneuver, ``[demo]`` duration and lab).
+    case on another machine (its own maneuver, ``[demo]`` duration and lab);
+    ``held_out``: a realistic dragline case also films its truth on a second
+    maneuver (``HELD_OUT_MANEUVER``), which the diagnosis predicts without
+    fitting it (``held_out`` in the result: each model's RMS residual there).
     """
 
     own = workdir is None
@@ -309,21 +340,18 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_
         recorded_maneuver = result.model.maneuver
         without = None if name is None else simulate(duration=10.0, rate_hz=200.0)
     effect = {"bucket_mm": 0.0, "bucket_pitch_deg": 0.0} if without is None else _effect_size(result, without)
-    # The rig's own lab: the dragline's built-in one, else six cameras about the machine's markers.
-    lab = lab_for_rig(machine, marker_positions(result)[1], seed)
-    delays = None
-    if name == "camera_latency":  # out of the menu: each camera's frames late by up to ``value`` s
-        delays = np.random.default_rng([seed, 1]).uniform(0.0, value, len(lab.cameras))
-    session, _ = synthesize_session(result, lab.cameras, seed=seed, wand_volume=lab.wand_volume,
-                                    lframe=lab.lframe, wand_length=lab.wand_length, camera_delay_s=delays,
-                                    metadata={"generator": "dragline bench discovery", "rig": machine.name})
-    write_session_dir(folder, session, recorded_maneuver)
+    delay_s = value if name == "camera_latency" else None  # out of the menu: cameras late by up to ``value`` s
+    _film(result, machine, seed, folder, recorded_maneuver, delay_s)
+    spare = []
+    if held_out and world == "realistic" and rig_name is None:
+        spare = [os.path.join(workdir, f"case{seed}_held_out")]
+        _held_out_session(name, value, seed, spare[0], machine, delay_s)
     made = time.perf_counter() - started
     out = {"truth": name or "none", "value": value, "seed": seed, "world": world, "synth_seconds": made,
            "effect": effect, "rig": rig_name or "dragline"}
     t0 = time.perf_counter()
     try:
-        doc = diagnose_path(folder, rig=machine, workers=1, seed=seed).doc
+        doc = diagnose_path(folder, rig=machine, workers=1, seed=seed, held_out=spare).doc
         if keep:
             out["diagnosis"] = doc  # written by the caller: a Dask worker's disk is not the user's
     except ValueError as exc:
@@ -331,6 +359,8 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_
         return out
     finally:
         shutil.rmtree(workdir if own else folder, ignore_errors=True)
+        for path in spare:
+            shutil.rmtree(path, ignore_errors=True)
     out.update(verdict=doc["verdict"], reason=doc["reason"], diagnosis_seconds=time.perf_counter() - t0,
                load_seconds=doc["timing"].get("load_seconds"), simulations=doc["timing"]["simulations"])
     in_menu = name is None or (name in MECHANISMS and MECHANISMS[name].candidate)
@@ -356,6 +386,8 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_
                    correlations=u.get("correlations"),
                    truth_rank=[x["name"] for x in doc["hypotheses"]].index(name) + 1,
                    truth_score=h["score"])
+    if doc.get("held_out"):
+        out["held_out"] = doc["held_out"][0]["rms_noise"]
     if doc["hypotheses"]:
         top = doc["hypotheses"][0]
         out.update(top=top["name"], top_score=top["score"], top_improvement=top["improvement"],
@@ -382,7 +414,8 @@ def _no_context():
     """A case needs nothing besides its own arguments."""
 
 
-def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, progress=None, keep=None):
+def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, progress=None, keep=None,
+                    held_out=False):
     """Run the blind discovery benchmark.
 
     Parameters
@@ -404,6 +437,9 @@ def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, pr
     keep : str, optional
         A folder where every case's ``diagnosis.json`` is kept
         (``case<seed>.json``).
+    held_out : bool
+        Each realistic dragline case's truth is filmed on a second maneuver
+        too, which its diagnosis predicts (``_run_case``).
 
     Returns
     -------
@@ -434,8 +470,8 @@ def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, pr
     started = time.perf_counter()
     session = executor.open(_no_context)
     try:
-        jobs = [(*c[:3], c[3] if len(c) > 3 else "nominal", workdir, bool(keep), c[4] if len(c) > 4 else None)
-                for c in cases]
+        jobs = [(*c[:3], c[3] if len(c) > 3 else "nominal", workdir, bool(keep), c[4] if len(c) > 4 else None,
+                 held_out) for c in cases]
         results = session.map(_run_case, jobs, each=finished)
     finally:
         session.close()
@@ -469,6 +505,7 @@ def _realistic_figures(results):
     nulls = none + oom
     false = sum(r["verdict"] in MECHANISMS for r in nulls)
     return {
+        "held_out_trial": _held_out_figures(results),
         "right_rate": float(np.mean([r["right"] for r in results])) if results else None,
         "n_right": sum(bool(r["right"]) for r in results),
         "right_rule": f"the hidden mechanism named with its parameter within {RIGHT_WITHIN:.0%}; \"none\" where "
@@ -490,6 +527,31 @@ def _realistic_figures(results):
                     "out_of_menu_wrong_name_rate": "<= 0.05", "median_mechanism_relative_error": "<= 0.25",
                     "diagnosis_s": "<= 300"},
     }
+
+
+def _held_out_figures(results):
+    """How each verdict's model predicts the held-out trial (another maneuver, never fitted): per kind of
+    verdict, the cases where the named model beats the updated one and the updated the nominal, and the
+    median RMS residuals (noise units). None when no case had one."""
+    have = [r for r in results if (r.get("held_out") or {}).get("nominal") is not None]
+    if not have:
+        return None
+
+    def better(rows, a, b):
+        pairs = [(r["held_out"].get(a), r["held_out"].get(b)) for r in rows]
+        return sum(1 for x, y in pairs if x is not None and y is not None and x < y)
+
+    def median(rows, label):
+        values = [r["held_out"][label] for r in rows if r["held_out"].get(label) is not None]
+        return float(np.median(values)) if values else None
+
+    groups = {"right_named": [r for r in have if r["verdict"] in MECHANISMS and r["right"]],
+              "wrong_named": [r for r in have if r["verdict"] in MECHANISMS and not r["right"]],
+              "none_or_unexplained": [r for r in have if r["verdict"] not in MECHANISMS]}
+    return {name: {"n": len(rows), "named_beats_updated": better(rows, "named", "updated"),
+                   "updated_beats_nominal": better(rows, "updated", "nominal"),
+                   "median_rms": {label: median(rows, label) for label in ("nominal", "updated", "named")}}
+            for name, rows in groups.items()}
 
 
 def _case_line(r):
@@ -621,6 +683,12 @@ def summary_lines(report):
                     f"{_fmt(sub['out_of_menu_wrong_name_rate'])} of {sub['n_out_of_menu']}; median mechanism error "
                     f"{_fmt(sub['median_mechanism_relative_error'])}; calibrated parameters off by a median "
                     f"{_fmt(sub['calibration_error_in_tolerances_median'])} tolerances (identifiable ones)")
+                for kind, h in (sub.get("held_out_trial") or {}).items():
+                    m = h["median_rms"]
+                    lines.append(f"held-out trial (another maneuver), {kind.replace('_', ' ')}: {h['n']} cases; the "
+                                 f"named model beats the updated on {h['named_beats_updated']}, the updated the "
+                                 f"nominal on {h['updated_beats_nominal']}; median RMS nominal {_fmt(m['nominal'])}, "
+                                 f"updated {_fmt(m['updated'])}, named {_fmt(m['named'])} (noise units)")
         return lines
     conf = report["confusion"]
     cols = sorted({v for row in conf.values() for v in row})
@@ -670,7 +738,7 @@ def bench_command(args):
 
     if getattr(args, "realism", False) and getattr(args, "pairs", False):
         return _pairs_command(args)
-    cases, derivation = None, None
+    cases, derivation, held_out = None, None, False
     if getattr(args, "limits", False):
         cases = REALISTIC_LIMIT_CASES if getattr(args, "realism", False) else LIMIT_CASES
     elif getattr(args, "realism", False) and getattr(args, "rig", None):
@@ -685,6 +753,7 @@ def bench_command(args):
                   file=sys.stderr)
     elif getattr(args, "realism", False) and getattr(args, "verdict_set", False):
         cases = verdict_cases(args.seed)
+        held_out = True
     elif getattr(args, "realism", False):
         cases = realistic_cases(args.seed, quick=bool(getattr(args, "quick", False)))
     report = bench_discovery(cases=cases,
@@ -692,7 +761,7 @@ def bench_command(args):
                              seed=args.seed,
                              quick=bool(getattr(args, "quick", False)),
                              progress=lambda line: print(line, file=sys.stderr),
-                             keep=getattr(args, "keep_diagnoses", None))
+                             keep=getattr(args, "keep_diagnoses", None), held_out=held_out)
     if derivation:
         report["magnitudes"] = derivation
     keep = getattr(args, "keep_diagnoses", None)

@@ -183,3 +183,22 @@ def test_the_summary_counts_the_intervals_that_hold_the_truth_over_the_correctly
     assert cov["n_named"] == 3
     assert [cov[k]["covered"] for k in ("68", "95", "68_fixed_rig")] == [1, 2, 1]
     assert cov["95"]["rate"] == pytest.approx(2 / 3)
+
+
+def test_the_held_out_trials_figures_count_which_model_predicts_it_best_per_kind_of_verdict():
+    from dragline.benchmarks._discovery import _held_out_figures
+
+    def case(verdict, right, nominal, updated, named=None):
+        return {"verdict": verdict, "right": right,
+                "held_out": {"nominal": nominal, "updated": updated, "named": named}}
+
+    results = [case("aero_drag", True, 9.0, 5.0, 2.0), case("aero_drag", True, 9.0, 5.0, 6.0),
+               case("pulley_friction", False, 4.0, 3.0, 3.5), case("none", True, 3.0, 2.0),
+               case("unexplained", True, 3.0, 4.0), {"verdict": "none", "right": True}]
+    out = _held_out_figures(results)
+    assert out["right_named"] == {"n": 2, "named_beats_updated": 1, "updated_beats_nominal": 2,
+                                  "median_rms": {"nominal": 9.0, "updated": 5.0, "named": 4.0}}
+    assert out["wrong_named"]["n"] == 1 and out["wrong_named"]["named_beats_updated"] == 0
+    assert out["none_or_unexplained"]["n"] == 2 and out["none_or_unexplained"]["updated_beats_nominal"] == 1
+    assert out["none_or_unexplained"]["median_rms"]["named"] is None
+    assert _held_out_figures([{"verdict": "none", "right": True}]) is None
