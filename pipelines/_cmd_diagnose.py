@@ -52,7 +52,8 @@ def add_parser(sub):
     p.add_argument("--discretization", default="baseline", metavar="LEVEL|ROPE=N,...",
                    help="discretization of every simulation (default baseline)")
     p.add_argument("--candidates", metavar="NAME,...",
-                   help="mechanisms to try (default: every mechanism the simulator has)")
+                   help="mechanisms to try (default: every candidate the simulator has); LAW@SITE tries a law at "
+                        "one site (pulley_friction@boom), LAW@* at each of the rig's sites")
     p.add_argument("--workers", type=number(integer=True, maximum=256), default=2, metavar="N",
                    help="simulation processes (default 2)")
     add_between_option(p)
@@ -78,11 +79,12 @@ def run(args):
     names = None
     if args.candidates:
         names = [n.strip() for n in args.candidates.split(",") if n.strip()]
-        candidate_list(names)  # unknown names: exit 2 before any work
     between = None
     for path in recordings if args.between else ():
         between = between_from_args(args, resolve_recording(path, tables=True).kind, path)
     rig = rig_from_args(args)
+    if names:
+        candidate_list(names, rig)  # unknown names and sites the rig has not: exit 2 before any work
     discretization = discretization_from_args(args, rig)
     say = (lambda msg: None) if args.quiet else (lambda msg: print(f"dragline: {msg}", file=sys.stderr))
     t0 = time.perf_counter()

@@ -25,7 +25,15 @@ from ._maneuver import Maneuver, default_maneuver, maneuver_from_table, read_man
 from ._dig import dig_maneuver
 from ._model import Model, assemble
 from ._modes import Modes, linear_modes
-from ._physics import MECHANISMS, Mechanism, make_mechanism, mechanism_names, parse_physics
+from ._physics import (
+    MECHANISMS,
+    Mechanism,
+    make_mechanism,
+    mechanism_names,
+    mechanism_sites,
+    mechanism_type,
+    parse_physics,
+)
 from ._rig import BUILT_IN_RIGS, DISCRETIZATION_LEVELS, Rig, load_rig, rig_from_dict
 from ._simulate import SimulationError, SimulationResult, simulate
 from ._sensitivity import Sensitivities, TangentUnavailable, simulate_sensitivities

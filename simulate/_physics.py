@@ -8,6 +8,11 @@ model, so switching a mechanism on never changes the force assembly).
 ``make_mechanism`` makes one from values, as the diagnosis does;
 ``parse_physics("NAME:PARAM=VALUE,...")`` is how the command line names
 them (docs/interfaces.md).
+
+A law at one site is named ``LAW@SITE`` (``pulley_friction@boom``): the
+law's site parameter (``MechanismType.site``) set to the site, the name
+kept whole, so that the diagnosis can fit a law at each site as a
+candidate of its own (``mechanism_sites`` lists a rig's).
 """
 
 from __future__ import annotations
@@ -18,7 +23,8 @@ import numpy as np
 
 from ._mechanisms import MECHANISMS
 
-__all__ = ["Mechanism", "MECHANISMS", "parse_physics", "make_mechanism", "mechanism_names", "limits_markdown"]
+__all__ = ["Mechanism", "MECHANISMS", "parse_physics", "make_mechanism", "mechanism_names", "mechanism_type",
+           "mechanism_sites", "limits_markdown"]
 
 
 @dataclass(frozen=True)
@@ -29,7 +35,7 @@ class Mechanism:
     parameters: dict = field(default_factory=dict)
 
     def apply(self, model):
-        MECHANISMS[self.name].apply(model, self.parameters)
+        mechanism_type(self.name).apply(model, self.parameters)
 
     def label(self):
         params = ",".join(f"{k}={v:g}" for k, v in self.parameters.items())
@@ -40,15 +46,55 @@ def mechanism_names():
     return sorted(MECHANISMS)
 
 
+def mechanism_type(name):
+    """The ``MechanismType`` a mechanism's name says: a law (``pulley_friction``) or a law at a site
+    (``pulley_friction@boom``).
+
+    Raises
+    ------
+    ValueError
+        An unknown law, or a site on a law that acts everywhere at once.
+    """
+    law, at, site = str(name).partition("@")
+    if law not in MECHANISMS:
+        raise ValueError(f"unknown mechanism {law!r} (choose from {', '.join(mechanism_names())})")
+    kind = MECHANISMS[law]
+    if at and not kind.site:
+        raise ValueError(f"mechanism {law} acts everywhere at once: it has no site ({name!r})")
+    if at and not site:
+        raise ValueError(f"mechanism {name!r}: no site after '@'")
+    return kind
+
+
+def mechanism_sites(rig, name):
+    """The sites of ``rig`` where the law ``name`` can act alone: ring names for a pulley law, the segments
+    of its kind for a segment law, in the rig file's order; [] for a law without sites.
+
+    ``f"{name}@{site}"`` names the law at one of them.
+    """
+    kind = mechanism_type(name)
+    if kind.site == "pulley":
+        return list(dict.fromkeys(site for spec in rig.ropes.values() for site in spec.ring_sites))
+    if kind.site == "segments":
+        from ._mechanisms._base import SELECTOR_KINDS
+
+        return [seg for seg, spec in rig.ropes.items() if spec.kind in SELECTOR_KINDS[kind.site_kind]]
+    return []
+
+
 def make_mechanism(name, **parameters):
     """A Mechanism from its name and parameters (the rest at their defaults), checked like ``parse_physics``.
 
     ``make_mechanism("pulley_friction", mu=0.02)`` is what the diagnosis
     passes around: objects, never ``NAME:PARAM=VALUE`` text.
     """
-    if name not in MECHANISMS:
-        raise ValueError(f"unknown mechanism {name!r} (choose from {', '.join(mechanism_names())})")
-    params = dict(MECHANISMS[name].defaults)
+    kind = mechanism_type(name)
+    params = dict(kind.defaults)
+    site = str(name).partition("@")[2]
+    if site:
+        if kind.site in parameters and parameters[kind.site] != site:
+            raise ValueError(f"mechanism {name}: {kind.site} = {parameters[kind.site]!r} is not its site")
+        params[kind.site] = site
     for key, value in parameters.items():
         if key not in params:
             raise ValueError(f"mechanism {name}: unknown parameter {key!r} (has {', '.join(params)})")
@@ -56,9 +102,9 @@ def make_mechanism(name, **parameters):
             value = float(value)
             if not np.isfinite(value) or value < 0:
                 raise ValueError(f"mechanism {name}: {key} must be a finite non-negative number")
-            limit = MECHANISMS[name].limits.get(key)
+            limit = kind.limits.get(key)
             if limit is not None and value > limit:
-                unit = MECHANISMS[name].units.get(key, "-")
+                unit = kind.units.get(key, "-")
                 unit = "" if unit == "-" else f" {unit}"
                 raise ValueError(f"mechanism {name}: {key} = {value:g}{unit} is beyond any machine's "
                                  f"(at most {limit:g}{unit})")
@@ -79,9 +125,7 @@ def parse_physics(spec):
     """
     name, _, rest = str(spec).partition(":")
     name = name.strip()
-    if name not in MECHANISMS:
-        raise ValueError(f"unknown mechanism {name!r} (choose from {', '.join(mechanism_names())})")
-    defaults = MECHANISMS[name].defaults
+    defaults = mechanism_type(name).defaults
     given = {}
     for item in filter(None, (s.strip() for s in rest.split(","))):
         key, eq, value = item.partition("=")

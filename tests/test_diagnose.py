@@ -304,6 +304,8 @@ def test_cli_bad_inputs_exit_2_with_one_line(tmp_path, nominal_measured, nominal
 
     assert main(["diagnose", str(meas), "--json", out, "--candidates", "magic"]) == 2
     assert "unknown mechanism" in _error_line(capsys)
+    assert main(["diagnose", str(meas), "--json", out, "--candidates", "pulley_friction@derrick"]) == 2
+    assert "pulley_friction has no site 'derrick' on this rig (its sites: hoist_cluster, boom)" in _error_line(capsys)
     assert main(["diagnose", str(tmp_path / "nothing.csv"), "--json", out]) == 2
     _error_line(capsys)
     assert not os.path.exists(out)

@@ -76,3 +76,53 @@ def test_every_mechanism_kind_has_the_one_interface_and_only_switches_on_its_own
             if k in ("air_density", "has_joints", "has_ring_friction"):
                 continue  # a constant of the drag law and the kernel's switches
             assert not np.any(nominal[k]), (name, k)
+
+
+def test_a_law_at_a_site_sets_that_sites_coefficients_alone(rig):
+    # LAW@SITE is the law with its site parameter set: the same kernel arrays, and nonzero only there - at the
+    # boom's ring, not the hoist cluster's; on one chain, not the five others.
+    from dragline.simulate import assemble, make_mechanism, mechanism_sites
+
+    man = Maneuver([0.0], {"hoist": [8.6], "drag": [4.2]})
+    at_boom = assemble(rig, man, physics=[make_mechanism("pulley_friction@boom", mu=0.05)])
+    explicit = assemble(rig, man, physics=[make_mechanism("pulley_friction", mu=0.05, pulley="boom")])
+    everywhere = assemble(rig, man, physics=[make_mechanism("pulley_friction", mu=0.05)])
+    assert np.array_equal(at_boom.arrays["ring_mu"], explicit.arrays["ring_mu"])
+    assert np.count_nonzero(at_boom.arrays["ring_mu"]) == 1
+    assert np.count_nonzero(everywhere.arrays["ring_mu"]) == len(mechanism_sites(rig, "pulley_friction")) == 2
+    chain = mechanism_sites(rig, "chain_link_friction")[0]
+    one = assemble(rig, man, physics=[make_mechanism(f"chain_link_friction@{chain}", mu=0.3)]).arrays
+    every = assemble(rig, man, physics=[make_mechanism("chain_link_friction", mu=0.3)]).arrays
+    changed = [k for k in one if not np.array_equal(one[k], assemble(rig, man).arrays[k]) and np.ndim(one[k])]
+    assert changed and all(0 < np.count_nonzero(one[k]) < np.count_nonzero(every[k]) for k in changed)
+
+
+def test_a_site_is_named_only_where_the_law_has_one():
+    from dragline.simulate import load_rig, make_mechanism, mechanism_sites
+
+    assert mechanism_sites(load_rig("dragline"), "pulley_friction") == ["hoist_cluster", "boom"]
+    assert mechanism_sites(load_rig("dragline"), "rope_bending_damping") == ["drag_rope", "dump_rope", "hoist_rope"]
+    assert mechanism_sites(load_rig("gantry_crane"), "chain_link_friction") == ["left_sling", "right_sling"]
+    assert mechanism_sites(load_rig("dragline"), "aero_drag") == []
+    assert parse_physics("pulley_inertia@boom:inertia=0.001").parameters["pulley"] == "boom"
+    with pytest.raises(ValueError, match="acts everywhere at once"):
+        make_mechanism("aero_drag@bucket")
+    with pytest.raises(ValueError, match="is not its site"):
+        make_mechanism("pulley_friction@boom", pulley="hoist_cluster")
+    with pytest.raises(ValueError, match="unknown mechanism"):
+        make_mechanism("pully_friction@boom")
+
+
+def test_the_candidates_at_each_site_of_a_law_are_candidates_of_their_own(rig):
+    from dragline.compare.diagnose._hypotheses import candidate_list
+
+    names = [c["name"] for c in candidate_list(["pulley_friction@*", "aero_drag", "rope_bending_damping@hoist_rope"],
+                                               rig)]
+    assert names == ["pulley_friction@hoist_cluster", "pulley_friction@boom", "aero_drag",
+                     "rope_bending_damping@hoist_rope"]
+    at_boom = candidate_list(["pulley_friction@boom"], rig)[0]
+    assert (at_boom["main"], at_boom["range"]) == ("mu", candidate_list(["pulley_friction"])[0]["range"])
+    with pytest.raises(ValueError, match="no rig given"):
+        candidate_list(["pulley_friction@*"])
+    with pytest.raises(ValueError, match="has no site 'derrick'"):
+        candidate_list(["pulley_friction@derrick"], rig)

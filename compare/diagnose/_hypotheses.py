@@ -75,6 +75,8 @@ from ...simulate import (
     assemble,
     make_mechanism,
     matrix_from_angles,
+    mechanism_sites,
+    mechanism_type,
     simulate,
     stable_time_step,
 )
@@ -118,8 +120,12 @@ MIN_IMPROVEMENT = 200.0
 BOUND_TOLERANCE = 0.05  # in ln p
 
 
-def candidate_list(names=None):
+def candidate_list(names=None, rig=None):
     """The candidate mechanisms: every one in ``MECHANISMS`` marked a candidate (or those named).
+
+    A name may be a law at one site, ``LAW@SITE`` (``pulley_friction@boom``),
+    or ``LAW@*``: the law at each of ``rig``'s sites in turn
+    (``mechanism_sites``), each a candidate of its own.
 
     Returns
     -------
@@ -129,17 +135,25 @@ def candidate_list(names=None):
     Raises
     ------
     ValueError
-        A name that is not a mechanism.
+        A name that is not a mechanism, a site the law has not, or (with
+        ``rig``) a site the rig has not.
     """
     names = sorted(n for n in MECHANISMS if MECHANISMS[n].candidate) if names is None else list(names)
     out = []
     for name in names:
-        if name not in MECHANISMS:
-            raise ValueError(f"unknown mechanism {name!r} (choose from {', '.join(sorted(MECHANISMS))})")
-        entry = MECHANISMS[name]
-        main = entry.main
+        entry = mechanism_type(name)  # unknown laws and sites on a law without them say so
+        law, _, site = name.partition("@")
+        sites = mechanism_sites(rig, law) if rig is not None and site else None
+        if site == "*":
+            if sites is None:
+                raise ValueError(f"{name!r}: the sites of a law are the rig's; no rig given")
+            expanded = [f"{law}@{s}" for s in sites]
+        else:
+            if sites is not None and site not in sites:
+                raise ValueError(f"{law} has no site {site!r} on this rig (its sites: {', '.join(sites) or 'none'})")
+            expanded = [name]
         lo, hi = entry.range  # the one table of plausible ranges: the mechanism registry
-        out.append({"name": name, "main": main, "range": (float(lo), float(hi)), "doc": entry.doc})
+        out += [{"name": n, "main": entry.main, "range": (float(lo), float(hi)), "doc": entry.doc} for n in expanded]
     return out
 
 

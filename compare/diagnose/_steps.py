@@ -347,7 +347,7 @@ def locate_updated(state):
 
 def fit_mechanisms(state):
     """Each runnable candidate fitted through the simulator on top of the updated model."""
-    cands = candidate_list(state.candidate_names)
+    cands = candidate_list(state.candidate_names, state.rig)
     skipped, runnable = [], []
     maneuver = first_maneuver(state.nominal_ctx)
     for c in cands:

@@ -883,9 +883,9 @@ def _prior_rows(nuis, coords, tol, offset_sd, errs):
 
 
 def _main_of(mechanism):
-    from ...simulate import MECHANISMS
+    from ...simulate import mechanism_type
 
-    return MECHANISMS[mechanism.name].main
+    return mechanism_type(mechanism.name).main
 
 
 def _difference_job(coords, i, tol, guess):

@@ -34,6 +34,13 @@ class MechanismType:
         One line for users: what it is and what values are plausible.
     candidate : bool
         Whether the diagnosis tries it.
+    site : str
+        The parameter that says where it acts (``pulley``, ``segments``),
+        so that ``LAW@SITE`` names it at one site; "" for a law that acts
+        everywhere at once.
+    site_kind : str
+        For a segment law: the selector its ``default`` means (``ropes``,
+        ``chains``), the segments its sites are.
     """
 
     name: str = ""
@@ -44,6 +51,8 @@ class MechanismType:
     limits: dict = {}
     doc: str = ""
     candidate: bool = True
+    site: str = ""
+    site_kind: str = ""
 
     def apply(self, model, parameters):
         """Set the kernel's coefficients in ``model.arrays`` for ``parameters`` (a full dict, SI units)."""

@@ -9,6 +9,8 @@ class ChainLinkFriction(MechanismType):
     name = "chain_link_friction"
     main = "mu"
     defaults = {"mu": 0.3, "pin_radius": 0.00475, "segments": "default"}
+    site = "segments"
+    site_kind = "chains"
     units = {"mu": "-", "pin_radius": "m"}
     range = (0.01, 1.0)
     # No dry contact grips beyond mu of a few (rubber on rubber about 1-4); no link pin is metres thick.
@@ -20,6 +22,6 @@ class ChainLinkFriction(MechanismType):
         # Links rolling on each other under tension T resist with a Coulomb
         # moment mu T r_pin (kernel: _joint_impulses): the tighter the chain, the
         # more it resists bending. Linear (Coulomb) decay signature.
-        for s in segments(model, parameters["segments"], "chains"):
+        for s in segments(model, parameters["segments"], self.site_kind):
             model.arrays["seg_link_mu"][s] = parameters["mu"]
             model.arrays["seg_link_r"][s] = parameters["pin_radius"]

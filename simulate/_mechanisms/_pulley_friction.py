@@ -9,6 +9,7 @@ class PulleyFriction(MechanismType):
     name = "pulley_friction"
     main = "mu"
     defaults = {"mu": 0.1, "pulley": "all"}
+    site = "pulley"
     units = {"mu": "-"}
     # From a sheave on a rolling bearing (the bearing's friction 0.001-0.005
     # times its bore over the sheave's radius, 0.2-0.3: 0.001 x 0.22 at the

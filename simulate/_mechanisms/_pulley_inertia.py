@@ -9,6 +9,7 @@ class PulleyInertia(MechanismType):
     name = "pulley_inertia"
     main = "inertia"
     defaults = {"inertia": 1e-4, "radius": 0.05, "pulley": "all"}
+    site = "pulley"
     units = {"inertia": "kg m^2", "radius": "m"}
     range = (1e-6, 1e-2)
     # The largest sheaves (a 5 m, several-tonne sheave of a mine hoist) are near 1e5 kg m^2 on a radius of metres.

@@ -9,6 +9,8 @@ class RopeBendingDamping(MechanismType):
     name = "rope_bending_damping"
     main = "c"
     defaults = {"c": 0.01, "segments": "default"}
+    site = "segments"
+    site_kind = "ropes"
     units = {"c": "N m s/rad"}
     # The range is what a wire rope's internal friction can plausibly give,
     # not a decision: c = EI tau / l per joint, the bending stiffness EI of
@@ -26,5 +28,5 @@ class RopeBendingDamping(MechanismType):
     def apply(self, model, parameters):
         # A moment -c omega_rel at every joint (kernel: _joint_impulses).
         # Exponential (viscous) decay signature.
-        for s in segments(model, parameters["segments"], "ropes"):
+        for s in segments(model, parameters["segments"], self.site_kind):
             model.arrays["seg_bend_c"][s] = parameters["c"]

@@ -9,6 +9,7 @@ class SheaveBearingDamping(MechanismType):
     name = "sheave_bearing_damping"
     main = "c"
     defaults = {"c": 1e-3, "radius": 0.05, "pulley": "all"}
+    site = "pulley"
     units = {"c": "N m s/rad", "radius": "m"}
     range = (1e-5, 0.05)
     # A bearing whose viscous torque is a meganewton-metre per rad/s would hold any sheave still.
