@@ -9,7 +9,7 @@ model, so switching a mechanism on never changes the force assembly).
 ``parse_physics("NAME:PARAM=VALUE,...")`` is how the command line names
 them (docs/interfaces.md).
 
-A law at one site is named ``LAW@SITE`` (``pulley_friction@boom``): the
+A law at one site is named ``LAW@SITE`` (``pulley_friction@boom``, ``aero_drag@bucket``): the
 law's site parameter (``MechanismType.site``) set to the site, the name
 kept whole, so that the diagnosis can fit a law at each site as a
 candidate of its own (``mechanism_sites`` lists a rig's).
@@ -38,7 +38,10 @@ class Mechanism:
         mechanism_type(self.name).apply(model, self.parameters)
 
     def label(self):
-        params = ",".join(f"{k}={v:g}" for k, v in self.parameters.items())
+        """As ``parse_physics`` reads it back (a site in the name is not repeated among the parameters)."""
+        site = mechanism_type(self.name).site if "@" in self.name else None
+        params = ",".join(f"{k}={v}" if isinstance(v, str) else f"{k}={v:g}"
+                          for k, v in self.parameters.items() if k != site)
         return f"{self.name}:{params}" if params else self.name
 
 
@@ -48,7 +51,7 @@ def mechanism_names():
 
 def mechanism_type(name):
     """The ``MechanismType`` a mechanism's name says: a law (``pulley_friction``) or a law at a site
-    (``pulley_friction@boom``).
+    (``pulley_friction@boom``, ``aero_drag@bucket``).
 
     Raises
     ------
@@ -68,7 +71,8 @@ def mechanism_type(name):
 
 def mechanism_sites(rig, name):
     """The sites of ``rig`` where the law ``name`` can act alone: ring names for a pulley law, the segments
-    of its kind for a segment law, in the rig file's order; [] for a law without sites.
+    of its kind for a segment law, bodies for a body law, in the rig file's order; [] for a law without
+    sites.
 
     ``f"{name}@{site}"`` names the law at one of them.
     """
@@ -79,6 +83,8 @@ def mechanism_sites(rig, name):
         from ._mechanisms._base import SELECTOR_KINDS
 
         return [seg for seg, spec in rig.ropes.items() if spec.kind in SELECTOR_KINDS[kind.site_kind]]
+    if kind.site == "body":
+        return list(rig.bodies)
     return []
 
 

@@ -90,6 +90,8 @@ def test_a_law_at_a_site_sets_that_sites_coefficients_alone(rig):
     assert np.array_equal(at_boom.arrays["ring_mu"], explicit.arrays["ring_mu"])
     assert np.count_nonzero(at_boom.arrays["ring_mu"]) == 1
     assert np.count_nonzero(everywhere.arrays["ring_mu"]) == len(mechanism_sites(rig, "pulley_friction")) == 2
+    bucket = assemble(rig, man, physics=[make_mechanism("aero_drag@bucket", cd=2.0)]).arrays
+    assert np.count_nonzero(bucket["body_cda"]) == 1 and bucket["body_cda"][0] > 0 and not np.any(bucket["seg_cda"])
     chain = mechanism_sites(rig, "chain_link_friction")[0]
     one = assemble(rig, man, physics=[make_mechanism(f"chain_link_friction@{chain}", mu=0.3)]).arrays
     every = assemble(rig, man, physics=[make_mechanism("chain_link_friction", mu=0.3)]).arrays
@@ -103,10 +105,12 @@ def test_a_site_is_named_only_where_the_law_has_one():
     assert mechanism_sites(load_rig("dragline"), "pulley_friction") == ["hoist_cluster", "boom"]
     assert mechanism_sites(load_rig("dragline"), "rope_bending_damping") == ["drag_rope", "dump_rope", "hoist_rope"]
     assert mechanism_sites(load_rig("gantry_crane"), "chain_link_friction") == ["left_sling", "right_sling"]
-    assert mechanism_sites(load_rig("dragline"), "aero_drag") == []
+    assert mechanism_sites(load_rig("dragline"), "aero_drag") == ["bucket", "spreader_bar", "hoist_cluster",
+                                                                  "drag_cluster"]
     assert parse_physics("pulley_inertia@boom:inertia=0.001").parameters["pulley"] == "boom"
-    with pytest.raises(ValueError, match="acts everywhere at once"):
-        make_mechanism("aero_drag@bucket")
+    assert make_mechanism("aero_drag@bucket", cd=2.0).parameters["body"] == "bucket"
+    for m in (make_mechanism("pulley_friction@boom", mu=0.05), make_mechanism("aero_drag", cd=1.5)):
+        assert parse_physics(m.label()) == m  # the label reads back
     with pytest.raises(ValueError, match="is not its site"):
         make_mechanism("pulley_friction@boom", pulley="hoist_cluster")
     with pytest.raises(ValueError, match="unknown mechanism"):

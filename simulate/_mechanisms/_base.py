@@ -35,7 +35,7 @@ class MechanismType:
     candidate : bool
         Whether the diagnosis tries it.
     site : str
-        The parameter that says where it acts (``pulley``, ``segments``),
+        The parameter that says where it acts (``pulley``, ``segments``, ``body``),
         so that ``LAW@SITE`` names it at one site; "" for a law that acts
         everywhere at once.
     site_kind : str
