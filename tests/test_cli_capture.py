@@ -70,7 +70,7 @@ def test_synth_writes_the_session_and_the_truth_apart(lab):
         np.testing.assert_array_equal(got.K, true.K)
         np.testing.assert_array_equal(got.dist, true.dist)
     physics = json.loads((lab["truth"] / "physics.json").read_text())
-    assert physics["physics"] == [{"name": "aero_drag", "parameters": {"cd": 1.5, "air_density": 1.2}}]
+    assert physics["physics"] == [{"name": "aero_drag", "parameters": {"cd": 1.5, "air_density": 1.2, "body": "all"}}]
     man = pd.read_csv(lab["session"] / "maneuver.csv")
     dig = dig_maneuver()
     np.testing.assert_allclose(man["drag_length"], dig.lengths["drag"])
