@@ -399,13 +399,21 @@ def test_the_steps_leave_their_input_state_as_it_was_and_compose_to_diagnose(nom
 def test_friction_at_one_sheave_is_named_at_that_sheave(nominal_run):
     # Friction at the boom's sheave alone: fitted everywhere at once it improves nothing (the updating takes up
     # its effect at the rig's bounds), so the law is tried at each ring (pulley_friction@*), and each site is
-    # refitted jointly with the rig's parameters whatever its first score.
+    # refitted jointly with the rig's parameters whatever its first score. Link friction tried at each chain
+    # too: the planar dig moves a left chain as its right twin, so each pair is one candidate (and the two
+    # hoist chains of a side, lower and upper, alike at cosine 0.94, one with them).
     run = simulate(physics=[parse_physics("pulley_friction@boom:mu=0.05")], initial_state=nominal_run.states[0],
                    discretization=LEVEL)
-    result = diagnose(noisy(run.table, seed=13), candidates=["pulley_friction@*"], workers=2, discretization=LEVEL)
+    result = diagnose(noisy(run.table, seed=13), candidates=["pulley_friction@*", "chain_link_friction@*"],
+                      workers=2, discretization=LEVEL)
     doc = result.doc
     assert doc["verdict"] == "pulley_friction@boom", doc["reason"]
     named = doc["hypotheses"][0]
     assert named["parameters"]["pulley"] == "boom"
     assert named["parameters"]["mu"] == pytest.approx(0.05, rel=0.05)
-    assert {h["name"] for h in doc["hypotheses"]} == {"pulley_friction@boom", "pulley_friction@hoist_cluster"}
+    assert {h["name"] for h in doc["hypotheses"]} == {
+        "pulley_friction@boom", "pulley_friction@hoist_cluster", "chain_link_friction@left_drag_chain+right_drag_chain",
+        "chain_link_friction@left_lower_hoist_chain+right_lower_hoist_chain+left_upper_hoist_chain+"
+        "right_upper_hoist_chain"}
+    rings = next(g for g in doc["sites"] if g["law"] == "pulley_friction")
+    assert rings["groups"] == [["hoist_cluster"], ["boom"]] and rings["cosines"][0][1] < 0.9

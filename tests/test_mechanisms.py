@@ -130,3 +130,32 @@ def test_the_candidates_at_each_site_of_a_law_are_candidates_of_their_own(rig):
         candidate_list(["pulley_friction@*"])
     with pytest.raises(ValueError, match="has no site 'derrick'"):
         candidate_list(["pulley_friction@derrick"], rig)
+
+
+def test_sites_are_joined_only_where_every_pair_is_alike():
+    # Three signatures: the first two at cosine 0.97, the second and third at 0.95, the first and third at
+    # about 0.85: complete linkage joins the first two and leaves the third alone (single linkage would chain
+    # all three); a site without a signature stands alone.
+    from dragline.compare.diagnose._sites import alike_groups
+
+    e = np.eye(3)
+    a = e[0]
+    b = 0.97 * e[0] + np.sqrt(1 - 0.97**2) * e[1]
+    # c at 0.95 from b, in the plane of e0 and e1 and beyond b: its angle from a adds up
+    angle = np.arccos(0.97) + np.arccos(0.95)
+    c = np.cos(angle) * e[0] + np.sin(angle) * e[1]
+    groups, cos = alike_groups([a, b, c, None])
+    assert cos[0, 1] == pytest.approx(0.97) and cos[1, 2] == pytest.approx(0.95) and cos[0, 2] < 0.9
+    assert groups == [[0, 1], [2], [3]]
+    assert alike_groups([a, b, c], alike=0.8)[0] == [[0, 1, 2]]
+
+
+def test_a_set_of_sites_acts_at_each_of_them(rig):
+    from dragline.simulate import assemble, make_mechanism
+
+    man = Maneuver([0.0], {"hoist": [8.6], "drag": [4.2]})
+    both = assemble(rig, man, physics=[make_mechanism("pulley_friction@hoist_cluster+boom", mu=0.05)]).arrays
+    every = assemble(rig, man, physics=[make_mechanism("pulley_friction", mu=0.05)]).arrays
+    assert np.array_equal(both["ring_mu"], every["ring_mu"])
+    two = assemble(rig, man, physics=[make_mechanism("aero_drag@bucket+drag_cluster", cd=2.0)]).arrays
+    assert np.count_nonzero(two["body_cda"]) == 2 and two["body_cda"][0] > 0 and two["body_cda"][3] > 0

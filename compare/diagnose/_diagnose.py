@@ -251,6 +251,7 @@ def diagnosis_of(state):
         "second_mechanism": second,
         "updated_again": state.superseded,
         "skipped": state.skipped,
+        "sites": state.site_groups,
         "free_decay": decay,
         "metrics": metrics,
         "null_test": {"threshold": null.threshold, "noise_threshold": null.noise_threshold,

@@ -131,6 +131,7 @@ class DiagnosisState:
     candidates: list = field(default_factory=list)
     runnable: list = field(default_factory=list)
     skipped: list = field(default_factory=list)
+    site_groups: list = field(default_factory=list)  # per law tried at its sites: which the recording joins
     points: dict = field(default_factory=dict)
     scored: dict = field(default_factory=dict)
     joints: dict = field(default_factory=dict)

@@ -63,6 +63,7 @@ from ._scale import machine_scale
 from ._second_round import second_round
 from ._state import NullTest, Recording
 from ._trials import SEPARATOR, first_maneuver
+from ._sites import join_alike_sites
 from ._summary import significant_updates, stated_uncertainty, structure_energy
 from ._updating import (
     OFFSET_FINDING,
@@ -348,6 +349,8 @@ def locate_updated(state):
 def fit_mechanisms(state):
     """Each runnable candidate fitted through the simulator on top of the updated model."""
     cands = candidate_list(state.candidate_names, state.rig)
+    # A law at each of its sites: the sites the recording cannot tell apart become one candidate (``_sites``).
+    cands, site_groups = join_alike_sites(state.problem, state.ctx, cands, state.base_sim, workers=state.workers)
     skipped, runnable = [], []
     maneuver = first_maneuver(state.nominal_ctx)
     for c in cands:
@@ -361,7 +364,8 @@ def fit_mechanisms(state):
     points = fit_candidates(state.problem, state.ctx, runnable, state.base_sim, workers=state.workers,
                             progress=state.note)
     scored = {c["name"]: score_candidate(state.problem, c, points[c["name"]]) for c in runnable}
-    return replace(state, candidates=cands, runnable=runnable, skipped=skipped, points=points, scored=scored)
+    return replace(state, candidates=cands, runnable=runnable, skipped=skipped, points=points, scored=scored,
+                   site_groups=site_groups)
 
 
 def refit_jointly(state):

@@ -15,8 +15,9 @@ class AeroDrag(MechanismType):
     # No shape drags more than a few times its area (a flat plate 2, a parachute 2.5); no fluid is denser than
     # mercury (13,600 kg/m^3).
     limits = {"cd": 100.0, "air_density": 2.0e4}
-    doc = ("quadratic drag coefficient (-); air density (kg/m^3); body = one body's name (that body alone) or "
-           "all (every body and rope); plausible 0.5-2 in air (larger values stand in for a denser fluid)")
+    doc = ("quadratic drag coefficient (-); air density (kg/m^3); body = one body's name (that body alone; "
+           "several joined by +) or all (every body and rope); plausible 0.5-2 in air (larger values stand in "
+           "for a denser fluid)")
 
     def apply(self, model, parameters):
         # Quadratic drag 0.5 rho cd A |v| v. Bodies: A is the mean face area of
@@ -24,10 +25,11 @@ class AeroDrag(MechanismType):
         # projected width times the length each particle stands for.
         a = model.arrays
         which = parameters["body"]
-        if which != "all" and which not in model.body_names:
+        chosen = set(model.body_names if which == "all" else which.split("+"))
+        if chosen - set(model.body_names):
             raise ValueError(f"body {which!r} unknown ({', '.join([*model.body_names, 'all'])})")
         for b, name in enumerate(model.body_names):
-            if which in ("all", name):
+            if name in chosen:
                 sx, sy, sz = model.rig.bodies[name].size
                 a["body_cda"][b] = parameters["cd"] * (sx * sy + sy * sz + sx * sz) / 3.0
         for s, name in enumerate(model.seg_names if which == "all" else ()):

@@ -63,7 +63,8 @@ class MechanismType:
 
 
 def rings(model, which):
-    """Ring indices a pulley mechanism acts on: ``all``, or the rings of one site name, point or rope.
+    """Ring indices a pulley mechanism acts on: ``all``, or the rings of one site name, point or rope, or of
+    several joined by ``+`` (``boom+hoist_cluster``).
 
     A ring's site name is its ``ring_names`` entry in the rig file, else the
     name of the point it sits at (``boom_pulley`` for ``fixed.boom_pulley``);
@@ -73,6 +74,8 @@ def rings(model, which):
         raise ValueError("the rig has no ring or sheave for a pulley mechanism to act at")
     if which == "all":
         return list(range(model.n_rings))
+    if "+" in which:
+        return sorted({r for part in which.split("+") for r in rings(model, part)})
     sites = {}
     for seg, indices in model.seg_rings.items():
         spec = model.rig.ropes[seg]
@@ -90,10 +93,13 @@ SELECTOR_KINDS = {"ropes": ("rope", "cable"), "chains": ("chain",)}
 
 
 def segments(model, which, default_kind):
-    """Segments a joint mechanism acts on: ``ropes`` (kinds rope and cable), ``chains``, ``all``, or one name."""
+    """Segments a joint mechanism acts on: ``ropes`` (kinds rope and cable), ``chains``, ``all``, or one name,
+    or several joined by ``+``."""
     which = default_kind if which == "default" else which
     if which == "all":
         return list(range(len(model.seg_names)))
+    if "+" in which:
+        return sorted({s for part in which.split("+") for s in segments(model, part, default_kind)})
     if which in SELECTOR_KINDS:
         kinds = SELECTOR_KINDS[which]
         found = [s for s, n in enumerate(model.seg_names) if model.rig.ropes[n].kind in kinds]
