@@ -107,9 +107,11 @@ def _sd(floor, s, parts, term):
     return np.hypot(np.maximum(parts.max(axis=1), floor), s * term)
 
 
-def _negative_log_likelihood(floor, s, err, parts, term):
-    var = _sd(floor, s, parts, term) ** 2
-    return 0.5 * float(np.sum(np.log(var) + err**2 / var))
+def _negative_log_likelihoods(floor, alongs, err, parts, term):
+    """The negative log-likelihood at ``floor`` for each share in ``alongs`` (k,)."""
+    base = np.maximum(parts.max(axis=1), floor)
+    var = base[None, :] ** 2 + (np.asarray(alongs)[:, None] * term[None, :]) ** 2
+    return 0.5 * np.sum(np.log(var) + err[None, :] ** 2 / var, axis=1)
 
 
 def _coverage(floor, s, columns, z):
@@ -132,7 +134,7 @@ def calibrate_error_along(records, floor=REFINE_XATOL, along=ERROR_ALONG_SIGNATU
         records with the values in force and with the calibrated ones.
     """
     columns = _columns(records)
-    nll = np.array([[_negative_log_likelihood(f, s, *columns) for s in alongs] for f in floors])
+    nll = np.array([_negative_log_likelihoods(f, alongs, *columns) for f in floors])
     i, j = np.unravel_index(int(np.argmin(nll)), nll.shape)
     out = {"n_cases": int(columns[0].size), "n_excluded": sum(1 for r in records if r["excluded"]),
            "sets": sorted({r["set"] for r in records}), "constants": {}}
