@@ -325,7 +325,8 @@ def calibrate_second_share(records, share=SECOND_EXCESS_SHARE, pairs=()):
     highest = named.get(high_by, math.inf)
     return {"value": share, "lowest": lowest, "set_by": set_by, "n_records": len(records),
             "false_seconds": sum(bool(seconds_of_document(r["document"], share)) for r in records),
-            "n_pairs": len(pairs), "highest": None if math.isinf(highest) else highest, "highest_set_by": high_by,
+            "n_pairs": len(pairs), "n_pairs_named": len(others),
+            "highest": None if math.isinf(highest) else highest, "highest_set_by": high_by,
             "never_named": sorted(seed for seed, s in others.items() if s == 0.0),
             "missed_seconds": sum(1 for s in named.values() if s <= share),
             "in_interval": lowest < share < highest}
@@ -345,8 +346,9 @@ def summary_lines(report):
         lines.append(f"  second_excess_share = {second['value']:g}: {second['false_seconds']} false second mechanisms; "
                      f"none from {second['lowest']:.3g} up (set by case {second['set_by']})")
         if second.get("highest") is not None:
-            lines.append(f"    and {second['missed_seconds']} of the hidden seconds of {second['n_pairs']} two-mechanism "
-                         f"cases missed; every one named below {second['highest']:.3g} (set by case "
+            lines.append(f"    and {second['missed_seconds']} missed of the hidden seconds of the {second['n_pairs_named']} "
+                         f"two-mechanism cases (of {second['n_pairs']}) whose verdict named one of the two; every one "
+                         f"named below {second['highest']:.3g} (set by case "
                          f"{second['highest_set_by']}; named at no share: {second['never_named'] or 'none'})"
                          + ("" if second["in_interval"] else "  (the value in force is outside)"))
     return lines

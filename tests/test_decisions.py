@@ -243,3 +243,19 @@ def test_two_mechanism_records_bound_the_second_share_from_above():
     assert not calibrate_second_share(single, share=0.7, pairs=pairs)["in_interval"]
     assert calibrate_second_share(single, share=0.7, pairs=pairs)["missed_seconds"] == 1
     assert not calibrate_second_share(single, share=0.2, pairs=pairs)["in_interval"]
+
+
+def test_the_share_in_force_lies_between_the_committed_one_and_two_mechanism_records():
+    # From below: no record of one mechanism or none names a second from 0.385; from above: every hidden second
+    # of the two-mechanism records (seed 103) is named below 0.455. A share moved past either fails.
+    from dragline.benchmarks._decisions import PAIR_RECORDS, calibrate_second_share
+    from dragline.compare import SECOND_EXCESS_SHARE
+
+    with open(RECORDS, encoding="utf-8") as f:
+        records = json.load(f)["records"]
+    with open(PAIR_RECORDS, encoding="utf-8") as f:
+        pairs = json.load(f)["records"]
+    out = calibrate_second_share(records, pairs=pairs)
+    assert out["in_interval"] and out["lowest"] < SECOND_EXCESS_SHARE < out["highest"]
+    assert out["n_pairs_named"] >= 4 and out["missed_seconds"] == 0
+    assert calibrate_second_share(records, share=1.05 * out["highest"], pairs=pairs)["missed_seconds"] >= 1
