@@ -414,6 +414,21 @@ def _no_context():
     """A case needs nothing besides its own arguments."""
 
 
+def keeper(keep, progress, line):
+    """The callback each finished case goes through: its diagnosis document (popped from the result) written
+    to ``keep`` as ``case<seed>.json``, and ``line(result)`` given to ``progress``."""
+
+    def finished(result):
+        doc = result.pop("diagnosis", None)
+        if doc is not None:
+            os.makedirs(keep, exist_ok=True)
+            write_diagnosis_json(os.path.join(keep, f"case{result['seed']}.json"), doc)
+        if progress:
+            progress(line(result))
+
+    return finished
+
+
 def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, progress=None, keep=None,
                     held_out=False):
     """Run the blind discovery benchmark.
@@ -458,15 +473,7 @@ def bench_discovery(cases=None, workers=2, seed=0, quick=False, workdir=None, pr
     own = local and workdir is None
     workdir = tempfile.mkdtemp(prefix="dragline-discovery-") if own else (workdir if local else None)
 
-    def finished(result):
-        doc = result.pop("diagnosis", None)
-        if doc is not None:
-
-            os.makedirs(keep, exist_ok=True)
-            write_diagnosis_json(os.path.join(keep, f"case{result['seed']}.json"), doc)
-        if progress:
-            progress(_case_line(result))
-
+    finished = keeper(keep, progress, _case_line)
     started = time.perf_counter()
     session = executor.open(_no_context)
     try:

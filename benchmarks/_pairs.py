@@ -23,17 +23,10 @@ import shutil
 import tempfile
 import time
 
-from dragline.compare import (
-    SECOND_EXCESS_SHARE,
-    as_executor,
-    diagnose_path,
-    seconds_of_document,
-    write_diagnosis_json,
-)
-from dragline.lab import lab_for_rig, synthesize_session, write_session_dir
-from dragline.simulate import MECHANISMS, default_maneuver, load_rig, make_mechanism, marker_positions, simulate
+from dragline.compare import SECOND_EXCESS_SHARE, as_executor, diagnose_path, seconds_of_document
+from dragline.simulate import MECHANISMS, default_maneuver, load_rig, make_mechanism, simulate
 
-from ._discovery import DETECTION_THRESHOLDS, RIGHT_WITHIN, _three_digits, _truth_world
+from ._discovery import DETECTION_THRESHOLDS, RIGHT_WITHIN, _film, _no_context, _three_digits, _truth_world, keeper
 
 __all__ = ["PAIRS", "pair_cases", "bench_pairs", "second_share", "pair_records", "summary_lines"]
 
@@ -90,11 +83,7 @@ def _run_pair(first, v1, second, v2, seed, workdir=None, keep=False):
     physics = [make_mechanism(first, **{MECHANISMS[first].main: v1}),
                make_mechanism(second, **{MECHANISMS[second].main: v2})]
     result = simulate(rig, maneuver, discretization, physics, duration=10.0, rate_hz=200.0)
-    lab = lab_for_rig(machine, marker_positions(result)[1], seed)
-    session, _ = synthesize_session(result, lab.cameras, seed=seed, wand_volume=lab.wand_volume, lframe=lab.lframe,
-                                    wand_length=lab.wand_length,
-                                    metadata={"generator": "dragline bench discovery --pairs", "rig": machine.name})
-    write_session_dir(folder, session, default_maneuver(machine))
+    _film(result, machine, seed, folder, default_maneuver(machine))
     out = {"truth": first, "value": v1, "second": second, "second_value": v2, "seed": seed}
     t0 = time.perf_counter()
     try:
@@ -118,10 +107,6 @@ def _run_pair(first, v1, second, v2, seed, workdir=None, keep=False):
     return out
 
 
-def _no_context():
-    """A case needs nothing besides its own arguments."""
-
-
 def bench_pairs(seed=0, workers=2, keep=None, progress=None):
     """Run the two-mechanism cases; ``keep``: a folder for every case's diagnosis (``case<seed>.json``).
 
@@ -140,14 +125,7 @@ def bench_pairs(seed=0, workers=2, keep=None, progress=None):
     workdir = tempfile.mkdtemp(prefix="dragline-pairs-")
     started = time.perf_counter()
 
-    def finished(result):
-        doc = result.pop("diagnosis", None)
-        if doc is not None:
-            os.makedirs(keep, exist_ok=True)
-            write_diagnosis_json(os.path.join(keep, f"case{result['seed']}.json"), doc)
-        if progress:
-            progress(_line(result))
-
+    finished = keeper(keep, progress, _line)
     session = executor.open(_no_context)
     try:
         results = session.map(_run_pair, [(*c, workdir, bool(keep)) for c in pair_cases(seed)], each=finished)
