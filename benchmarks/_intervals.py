@@ -37,8 +37,7 @@ import os
 
 import numpy as np
 
-from dragline.compare.diagnose._hypotheses import REFINE_XATOL
-from dragline.compare.diagnose._summary import ERROR_ALONG_SIGNATURE, SYSTEMATIC_FLOOR
+from dragline.compare import ERROR_ALONG_SIGNATURE, REFINE_XATOL, SYSTEMATIC_FLOOR
 
 from ._discovery import wilson_interval
 

@@ -45,7 +45,10 @@ from .diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_
 from ._foxglove import write_results
 from ._machine_figure import MachinePicture, draw_machine, machine_picture, picture_at
 from .diagnose import (
+    ERROR_ALONG_SIGNATURE,
+    REFINE_XATOL,
     SECOND_EXCESS_SHARE,
+    SYSTEMATIC_FLOOR,
     DecisionRules,
     MachineScale,
     detection_thresholds,
@@ -61,7 +64,7 @@ __all__ += ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_d
             "write_diagnosis_report", "write_results", "DIG_PEAKS",
             "MachinePicture", "machine_picture", "picture_at", "draw_machine", "MachineScale", "machine_scale",
             "detection_thresholds", "DecisionRules", "verdict_of_document", "rethresholded", "seconds_of_document",
-            "SECOND_EXCESS_SHARE",
+            "SECOND_EXCESS_SHARE", "ERROR_ALONG_SIGNATURE", "SYSTEMATIC_FLOOR", "REFINE_XATOL",
             "Executor", "LocalExecutor", "DaskExecutor", "ExecutorError", "executor_from", "as_executor"]
 
 
