@@ -399,21 +399,37 @@ def test_the_steps_leave_their_input_state_as_it_was_and_compose_to_diagnose(nom
 def test_friction_at_one_sheave_is_named_at_that_sheave(nominal_run):
     # Friction at the boom's sheave alone: fitted everywhere at once it improves nothing (the updating takes up
     # its effect at the rig's bounds), so the law is tried at each ring (pulley_friction@*), and each site is
-    # refitted jointly with the rig's parameters whatever its first score. Link friction tried at each chain
-    # too: the planar dig moves a left chain as its right twin, so each pair is one candidate (and the two
-    # hoist chains of a side, lower and upper, alike at cosine 0.94, one with them).
+    # refitted jointly with the rig's parameters whatever its first score; the two rings' signatures are not
+    # alike, so each stays a candidate of its own.
     run = simulate(physics=[parse_physics("pulley_friction@boom:mu=0.05")], initial_state=nominal_run.states[0],
                    discretization=LEVEL)
-    result = diagnose(noisy(run.table, seed=13), candidates=["pulley_friction@*", "chain_link_friction@*"],
-                      workers=2, discretization=LEVEL)
+    result = diagnose(noisy(run.table, seed=13), candidates=["pulley_friction@*"], workers=2, discretization=LEVEL)
     doc = result.doc
     assert doc["verdict"] == "pulley_friction@boom", doc["reason"]
     named = doc["hypotheses"][0]
     assert named["parameters"]["pulley"] == "boom"
     assert named["parameters"]["mu"] == pytest.approx(0.05, rel=0.05)
-    assert {h["name"] for h in doc["hypotheses"]} == {
-        "pulley_friction@boom", "pulley_friction@hoist_cluster", "chain_link_friction@left_drag_chain+right_drag_chain",
-        "chain_link_friction@left_lower_hoist_chain+right_lower_hoist_chain+left_upper_hoist_chain+"
-        "right_upper_hoist_chain"}
-    rings = next(g for g in doc["sites"] if g["law"] == "pulley_friction")
+    assert {h["name"] for h in doc["hypotheses"]} == {"pulley_friction@boom", "pulley_friction@hoist_cluster"}
+    (rings,) = doc["sites"]
     assert rings["groups"] == [["hoist_cluster"], ["boom"]] and rings["cosines"][0][1] < 0.9
+
+
+def test_a_chain_and_its_twin_across_the_plane_are_one_site(nominal_run):
+    # The dig is planar: link friction in the left drag chain moves the recording as in the right one (cosine
+    # 1), unlike friction in a hoist chain; the sites' signatures say so before any fit.
+    from dragline.compare.diagnose._hypotheses import Problem, channels_on
+    from dragline.compare.diagnose._sites import _shape, alike_groups
+
+    t = nominal_run.table
+    channels = ["bucket.x", "bucket.z", "bucket.pitch", "drag_cluster.x", "drag_cluster.z", "hoist_cluster.x"]
+    ctx = {"time": np.asarray(t["time"]), "channels": channels}
+    base = channels_on(nominal_run, ctx)
+    problem = Problem(ctx["time"], base, np.array([5e-4, 5e-4, 5e-3, 5e-4, 5e-4, 5e-4]), t_stop=ctx["time"][-1])
+    shapes = []
+    for chain in ("left_drag_chain", "right_drag_chain", "left_lower_hoist_chain"):
+        run = simulate(physics=[parse_physics(f"chain_link_friction@{chain}:mu=0.3")],
+                       initial_state=nominal_run.states[0], discretization=LEVEL)
+        shapes.append(_shape(problem, channels_on(run, ctx) - base))
+    groups, cos = alike_groups(shapes)
+    assert cos[0, 1] > 0.999 and cos[0, 2] < 0.9
+    assert groups == [[0, 1], [2]]
