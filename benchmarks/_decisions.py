@@ -346,8 +346,9 @@ def summary_lines(report):
         lines.append(f"  second_excess_share = {second['value']:g}: {second['false_seconds']} false second mechanisms; "
                      f"none from {second['lowest']:.3g} up (set by case {second['set_by']})")
         if second.get("highest") is not None:
-            lines.append(f"    and {second['missed_seconds']} missed of the hidden seconds of the {second['n_pairs_named']} "
-                         f"two-mechanism cases (of {second['n_pairs']}) whose verdict named one of the two; every one "
+            lines.append(f"    and {second['missed_seconds']} missed of the hidden seconds of the "
+                         f"{second['n_pairs_named']} two-mechanism cases (of {second['n_pairs']}) whose verdict named "
+                         f"one of the two; every one "
                          f"named below {second['highest']:.3g} (set by case "
                          f"{second['highest_set_by']}; named at no share: {second['never_named'] or 'none'})"
                          + ("" if second["in_interval"] else "  (the value in force is outside)"))

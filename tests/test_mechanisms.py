@@ -130,6 +130,10 @@ def test_the_candidates_at_each_site_of_a_law_are_candidates_of_their_own(rig):
         candidate_list(["pulley_friction@*"])
     with pytest.raises(ValueError, match="has no site 'derrick'"):
         candidate_list(["pulley_friction@derrick"], rig)
+    both = "pulley_friction@boom+hoist_cluster"
+    assert candidate_list([both], rig)[0]["name"] == both
+    with pytest.raises(ValueError, match="has no site 'derrick'"):
+        candidate_list(["pulley_friction@boom+derrick"], rig)
 
 
 def test_sites_are_joined_only_where_every_pair_is_alike():

@@ -124,8 +124,8 @@ def candidate_list(names=None, rig=None):
     """The candidate mechanisms: every one in ``MECHANISMS`` marked a candidate (or those named).
 
     A name may be a law at one site, ``LAW@SITE`` (``pulley_friction@boom``),
-    or ``LAW@*``: the law at each of ``rig``'s sites in turn
-    (``mechanism_sites``), each a candidate of its own.
+    at several together (``LAW@A+B``), or ``LAW@*``: the law at each of
+    ``rig``'s sites in turn (``mechanism_sites``), each a candidate of its own.
 
     Returns
     -------
@@ -149,8 +149,10 @@ def candidate_list(names=None, rig=None):
                 raise ValueError(f"{name!r}: the sites of a law are the rig's; no rig given")
             expanded = [f"{law}@{s}" for s in sites]
         else:
-            if sites is not None and site not in sites:
-                raise ValueError(f"{law} has no site {site!r} on this rig (its sites: {', '.join(sites) or 'none'})")
+            unknown = [part for part in site.split("+") if part not in sites] if sites is not None else []
+            if unknown:
+                raise ValueError(f"{law} has no site {unknown[0]!r} on this rig "
+                                 f"(its sites: {', '.join(sites) or 'none'})")
             expanded = [name]
         lo, hi = entry.range  # the one table of plausible ranges: the mechanism registry
         out += [{"name": n, "main": entry.main, "range": (float(lo), float(hi)), "doc": entry.doc} for n in expanded]
