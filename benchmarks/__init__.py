@@ -19,7 +19,8 @@ measure what a user's code would get.
 - ``bench_discovery`` (``discovery_command``, ``discovery_summary_lines``):
   blind sessions diagnosed and scored against the physics hidden in them,
   on the dragline or (``--realism --rig NAME``, ``_machine_cases``) another
-  built-in machine; ``bench_pairs`` (``--realism --pairs``): two hidden at once
+  built-in machine; ``bench_pairs`` (``--realism --pairs``): two hidden at once;
+  ``bench_sites`` (``--realism --sites``): one law hidden at one site
 - ``bench_sensitivities`` (``sensitivities_summary_lines``): the states'
   Jacobian from the scheme's tangent against finite differences, timed
 - ``calibrate_decisions`` (``decisions_command``): the verdict's
@@ -48,6 +49,7 @@ _EXPORTS = {
     "detection_summary_lines": ("_detection", "summary_lines"),
     "bench_discovery": ("_discovery", "bench_discovery"),
     "bench_pairs": ("_pairs", "bench_pairs"),
+    "bench_sites": ("_site_cases", "bench_sites"),
     "discovery_command": ("_discovery", "bench_command"),
     "discovery_summary_lines": ("_discovery", "summary_lines"),
     "bench_sensitivities": ("_sensitivities", "bench_sensitivities"),

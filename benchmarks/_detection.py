@@ -22,7 +22,7 @@ import tempfile
 
 from dragline.compare import detection_thresholds
 from dragline.lab import lab_for_rig, synthesize_session, write_session_dir
-from dragline.simulate import MECHANISMS, default_maneuver, load_rig, marker_positions, simulate
+from dragline.simulate import MECHANISMS, default_maneuver, load_rig, marker_positions, mechanism_type, simulate
 
 from ._discovery import THRESHOLD_MULTIPLES, TRUTH_DISCRETIZATION
 
@@ -53,7 +53,8 @@ def bench_detection(seed=DETECTION_SEED, candidates=None, workers=2, progress=No
     """
     rig = load_rig()
     names = candidates or sorted(n for n in MECHANISMS if MECHANISMS[n].candidate)
-    sought = {n: (MECHANISMS[n].main, (MECHANISMS[n].range[0] / 100.0, MECHANISMS[n].range[1])) for n in names}
+    kinds = {n: mechanism_type(n) for n in names}  # a law, or a law at a site (LAW@SITE)
+    sought = {n: (k.main, (k.range[0] / 100.0, k.range[1])) for n, k in kinds.items()}
     folder = tempfile.mkdtemp(prefix="dragline-detection-")
     try:
         _session(f"{folder}/session", seed, rig)
@@ -63,7 +64,7 @@ def bench_detection(seed=DETECTION_SEED, candidates=None, workers=2, progress=No
     out = {"seed": seed, "own_error_chi2": found["own_error_chi2"], "candidates": {}}
     for name, c in found["candidates"].items():
         p = c["threshold"]
-        out["candidates"][name] = dict(c, main=MECHANISMS[name].main, range=list(MECHANISMS[name].range),
+        out["candidates"][name] = dict(c, main=kinds[name].main, range=list(kinds[name].range),
                                        multiples={f"{m}x": m * p for m in THRESHOLD_MULTIPLES})
     return out
 

@@ -54,6 +54,7 @@ from dragline.simulate import (
     load_rig,
     make_mechanism,
     marker_positions,
+    mechanism_type,
     simulate,
 )
 
@@ -235,8 +236,8 @@ def _truth_world(name, value, seed, effect=True, rig_name=None, maneuver=None):
     physics = []
     if effect and name == "material_damping":  # out of the menu: every rope's and chain's damping scaled
         coords = np.array([math.log(value) if p.field == "viscous_damping" else x for p, x in zip(params, coords)])
-    elif effect and name in MECHANISMS:
-        physics = [make_mechanism(name, **{MECHANISMS[name].main: value})]
+    elif effect and name is not None and name.partition("@")[0] in MECHANISMS:  # a law, or a law at a site
+        physics = [make_mechanism(name, **{mechanism_type(name).main: value})]
     truth_rig, truth_maneuver = apply_parameters(rig, maneuver or default_maneuver(rig), params, coords)
     if effect and name == "rope_creep":
         truth_maneuver = creeping(truth_maneuver, value)
@@ -737,7 +738,8 @@ def bench_command(args):
     ``args.limits`` (the ``LIMIT_CASES`` instead; with ``args.realism``
     the ``REALISTIC_LIMIT_CASES``), ``args.verdict_set`` (with
     ``args.realism``: ``verdict_cases``), ``args.pairs`` (with
-    ``args.realism``: two hidden mechanisms, ``_pairs``), ``args.workers``,
+    ``args.realism``: two hidden mechanisms, ``_pairs``), ``args.sites`` (with
+    ``args.realism``: one law at one site, ``_site_cases``), ``args.workers``,
     ``args.scheduler`` (a Dask cluster; also ``DRAGLINE_SCHEDULER``) and
     ``args.keep_diagnoses``.
     """
@@ -745,6 +747,15 @@ def bench_command(args):
 
     if getattr(args, "realism", False) and getattr(args, "pairs", False):
         return _pairs_command(args)
+    if getattr(args, "realism", False) and getattr(args, "sites", False):
+        from ._site_cases import bench_sites
+        from ._site_cases import summary_lines as site_summary_lines
+
+        report = bench_sites(seed=args.seed, workers=executor_from(getattr(args, "workers", 2) or 2,
+                                                                   getattr(args, "scheduler", None)),
+                             keep=getattr(args, "keep_diagnoses", None),
+                             progress=lambda line: print(line, file=sys.stderr))
+        return report, site_summary_lines(report)
     cases, derivation, held_out = None, None, False
     if getattr(args, "limits", False):
         cases = REALISTIC_LIMIT_CASES if getattr(args, "realism", False) else LIMIT_CASES

@@ -47,7 +47,9 @@ from ._machine_figure import MachinePicture, draw_machine, machine_picture, pict
 from .diagnose import (
     ERROR_ALONG_SIGNATURE,
     REFINE_XATOL,
+    SCREEN_SHARE,
     SECOND_EXCESS_SHARE,
+    SITES_ALIKE,
     SYSTEMATIC_FLOOR,
     DecisionRules,
     MachineScale,
@@ -65,6 +67,7 @@ __all__ += ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_d
             "MachinePicture", "machine_picture", "picture_at", "draw_machine", "MachineScale", "machine_scale",
             "detection_thresholds", "DecisionRules", "verdict_of_document", "rethresholded", "seconds_of_document",
             "SECOND_EXCESS_SHARE", "ERROR_ALONG_SIGNATURE", "SYSTEMATIC_FLOOR", "REFINE_XATOL",
+            "SITES_ALIKE", "SCREEN_SHARE",
             "Executor", "LocalExecutor", "DaskExecutor", "ExecutorError", "executor_from", "as_executor"]
 
 

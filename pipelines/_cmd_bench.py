@@ -28,6 +28,13 @@ def add_parser(sub):
     p.add_argument("--pairs", action="store_true",
                    help="discovery --realism: two hidden mechanisms per case (a dominant one at 20 times its "
                         "detection threshold, a second at 5 times), which bound the second round's share from above")
+    p.add_argument("--sites", action="store_true",
+                   help="discovery --realism: one law hidden at one site per case (friction at a ring, a sheave's "
+                        "bearing, drag on a body, a rope type's damping beyond its tolerance; 2, 5 and 20 times "
+                        "its detection threshold), diagnosed with every law at each of its sites")
+    p.add_argument("--candidates", metavar="NAME,...",
+                   help="detection: the candidates whose thresholds are sought (a law, or a law at a site, "
+                        "LAW@SITE; default every candidate)")
     p.add_argument("--rig", metavar="NAME", help="discovery --realism: another built-in machine's cases "
                                                   "(pendulum, slung_load, gantry_crane; default the dragline); "
                                                   "sensitivities: the machine whose parameters are differentiated")
@@ -93,7 +100,14 @@ def _discovery(args):
 def _detection(args):
     from dragline.benchmarks import bench_detection, detection_summary_lines
 
-    report = bench_detection(workers=args.workers, progress=lambda line: print(line, file=sys.stderr))
+    names = [n.strip() for n in args.candidates.split(",") if n.strip()] if args.candidates else None
+    if names:
+        from dragline.compare.diagnose import candidate_list
+        from dragline.simulate import load_rig
+
+        candidate_list(names, load_rig())  # unknown names and sites: exit 2 before any work
+    report = bench_detection(candidates=names, workers=args.workers,
+                             progress=lambda line: print(line, file=sys.stderr))
     return report, detection_summary_lines(report)
 
 

@@ -53,7 +53,8 @@ def add_parser(sub):
                    help="discretization of every simulation (default baseline)")
     p.add_argument("--candidates", metavar="NAME,...",
                    help="mechanisms to try (default: every candidate the simulator has); LAW@SITE tries a law at "
-                        "one site (pulley_friction@boom), LAW@* at each of the rig's sites")
+                        "one site (pulley_friction@boom), LAW@* at each of the rig's sites, *@* every law at each "
+                        "of its sites, 'default' the default list (default,*@*: both)")
     p.add_argument("--workers", type=number(integer=True, maximum=256), default=2, metavar="N",
                    help="simulation processes (default 2)")
     add_between_option(p)

@@ -71,8 +71,8 @@ def mechanism_type(name):
 
 def mechanism_sites(rig, name):
     """The sites of ``rig`` where the law ``name`` can act alone: ring names for a pulley law, the segments
-    of its kind for a segment law, bodies for a body law, in the rig file's order; [] for a law without
-    sites.
+    of its kind for a segment law, bodies for a body law, damping groups for a rope-type law, in the rig
+    file's order; [] for a law without sites.
 
     ``f"{name}@{site}"`` names the law at one of them.
     """
@@ -85,6 +85,10 @@ def mechanism_sites(rig, name):
         return [seg for seg, spec in rig.ropes.items() if spec.kind in SELECTOR_KINDS[kind.site_kind]]
     if kind.site == "body":
         return list(rig.bodies)
+    if kind.site == "group":
+        from ._mechanisms._base import damping_group_sites
+
+        return list(damping_group_sites(rig))
     return []
 
 

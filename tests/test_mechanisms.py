@@ -1,5 +1,7 @@
 """Optional mechanisms: each only removes energy, and leaves the rest pose alone."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -56,7 +58,8 @@ def test_every_mechanism_kind_has_the_one_interface_and_only_switches_on_its_own
     # One module each, one registry (simulate/_mechanisms): the parameter the
     # diagnosis fits is a numeric parameter with a unit and a plausible range
     # around its default, and applying the kind only sets coefficients that
-    # are zero in the nominal model (the force assembly never changes).
+    # are zero in the nominal model (the force assembly never changes); a law that says a rig-file value is
+    # wrong scales that value's array alone.
     from dragline.simulate import MECHANISMS, make_mechanism
     from dragline.simulate._mechanisms import MechanismType
 
@@ -72,6 +75,9 @@ def test_every_mechanism_kind_has_the_one_interface_and_only_switches_on_its_own
         with_it = assemble(rig, Maneuver([0.0], {"hoist": [8.6], "drag": [4.2]}), physics=[make_mechanism(name)]).arrays
         changed = [k for k in nominal if not np.array_equal(nominal[k], with_it[k])]
         assert changed, name
+        if kind.rig_array:
+            assert changed == [kind.rig_array], name
+            continue
         for k in changed:
             if k in ("air_density", "has_joints", "has_ring_friction"):
                 continue  # a constant of the drag law and the kernel's switches
@@ -134,6 +140,13 @@ def test_the_candidates_at_each_site_of_a_law_are_candidates_of_their_own(rig):
     assert candidate_list([both], rig)[0]["name"] == both
     with pytest.raises(ValueError, match="has no site 'derrick'"):
         candidate_list(["pulley_friction@boom+derrick"], rig)
+    # Every law at each of its sites, after the default list: each name once, a site-only law included.
+    every = [c["name"] for c in candidate_list(["default", "*@*", "pulley_friction"], rig)]
+    assert every[:5] == [c["name"] for c in candidate_list()] and len(every) == len(set(every))
+    assert {"sheave_bearing_damping@boom", "aero_drag@bucket", "chain_link_friction@left_drag_chain",
+            "rope_bending_damping@dump_rope"} <= set(every)
+    # the dragline's bodies, chains, rings (three laws), ropes, damping groups
+    assert len(every) == 5 + 4 + 6 + 2 + 2 + 3 + 2 + 3
 
 
 def test_sites_are_joined_only_where_every_pair_is_alike():
@@ -152,6 +165,60 @@ def test_sites_are_joined_only_where_every_pair_is_alike():
     assert cos[0, 1] == pytest.approx(0.97) and cos[1, 2] == pytest.approx(0.95) and cos[0, 2] < 0.9
     assert groups == [[0, 1], [2], [3]]
     assert alike_groups([a, b, c], alike=0.8)[0] == [[0, 1, 2]]
+
+
+def test_the_site_screen_ranks_on_what_no_parameter_change_explains():
+    # A linear world: the updated model's residual is the true site's signature less the part the
+    # parameters took up (a quarter of a parameter direction added to the truth, absorbed). A decoy built
+    # mostly of that parameter direction correlates with the residual better than the truth does on the
+    # updated rig alone; projected out of the parameters' span it is a wave at cosine 0.27 to the truth, and
+    # explains 0.07 of what the truth does.
+    # A site whose law would have to act backwards is not fitted, a lone site always is.
+    from dragline.compare.diagnose._hypotheses import Problem
+    from dragline.compare.diagnose._sites import SCREEN_SHARE, screen_sites
+
+    t = np.linspace(0.0, 10.0, 2001)
+    rng = np.random.default_rng(3)
+    wave = lambda f, p: np.column_stack([np.sin(2 * np.pi * f * t + p), np.cos(2 * np.pi * 0.7 * f * t + p)])
+    J0, J1, truth, other = wave(0.31, 0.0), wave(0.83, 1.0), wave(0.52, 0.4), wave(1.37, 2.0)
+    problem = Problem(t, np.zeros((t.size, 2)), np.ones(2), t_stop=t[-1])
+    residual = 0.02 * truth - 0.5 * J0 + 1e-4 * rng.normal(size=truth.shape)
+    signatures = {"law@truth": 0.02 * truth, "law@decoy": -2.0 * J0 + 0.02 * wave(0.52, 1.7),
+                  "law@backwards": -0.01 * truth, "law@other": 0.03 * other}
+    cands = [{"name": n, "range": (1.0, 2.0)} for n in ["plain_law", *signatures]]
+    plain = {n: abs(np.sum(s * residual)) / np.linalg.norm(s) for n, s in signatures.items()}
+    assert plain["law@decoy"] > 5 * plain["law@truth"]  # without the span the decoy would lead
+
+    kept, report, out = screen_sites(problem, cands, signatures, residual, [J0, J1])
+    score = {e["name"]: e["improvement"] for e in report}
+    assert report[0]["name"] == "law@truth" and report[0]["fitted"]
+    # What the truth adds to the parameters' fit is its own part outside their span: here almost all of it.
+    assert score["law@truth"] == pytest.approx(np.sum((0.02 * truth) ** 2), rel=0.02)
+    assert score["law@decoy"] < SCREEN_SHARE * score["law@truth"] and score["law@backwards"] == 0.0
+    assert [c["name"] for c in kept] == ["plain_law", "law@truth"]
+    assert len(out) == 3  # the three not fitted still weigh in the null test
+    lone = screen_sites(problem, cands[:1] + cands[3:4], signatures, residual, [J0, J1])
+    assert [c["name"] for c in lone[0]] == ["plain_law", "law@backwards"] and lone[1] == []
+
+
+def test_a_rope_types_damping_excess_is_the_rig_file_with_that_damping(rig):
+    # rope_damping_excess@GROUP says the rig file's damping of a tolerance group is wrong: the model with it is
+    # the model of the rig file whose group's viscous damping is 1 + excess times the value written, every
+    # rope of the group and no other (wire_rope: the hoist and drag ropes).
+    from dragline.simulate import apply_parameters, assemble, make_mechanism, mechanism_sites
+
+    man = Maneuver([0.0], {"hoist": [8.6], "drag": [4.2]})
+    assert mechanism_sites(rig, "rope_damping_excess") == ["wire_rope", "dump_rope", "chain"]
+    params = rig.tolerances
+    coords = np.array([math.log(2.5) if p.name == "ropes.wire_rope.viscous_damping" else 0.0 for p in params])
+    written, _ = apply_parameters(rig, man, params, coords)
+    by_law = assemble(rig, man, physics=[make_mechanism("rope_damping_excess@wire_rope", excess=1.5)]).arrays
+    by_file = assemble(written, man).arrays
+    nominal = assemble(rig, man).arrays
+    np.testing.assert_allclose(by_law["seg_relax"], by_file["seg_relax"], rtol=1e-12)
+    moved = by_law["seg_relax"] != nominal["seg_relax"]
+    names = assemble(rig, man).seg_names
+    assert sorted(n for n, m in zip(names, moved) if m) == ["drag_rope", "hoist_rope"]
 
 
 def test_a_set_of_sites_acts_at_each_of_them(rig):

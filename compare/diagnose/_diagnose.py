@@ -252,6 +252,7 @@ def diagnosis_of(state):
         "updated_again": state.superseded,
         "skipped": state.skipped,
         "sites": state.site_groups,
+        "site_screen": state.site_screen,
         "free_decay": decay,
         "metrics": metrics,
         "null_test": {"threshold": null.threshold, "noise_threshold": null.noise_threshold,

@@ -126,6 +126,8 @@ def candidate_list(names=None, rig=None):
     A name may be a law at one site, ``LAW@SITE`` (``pulley_friction@boom``),
     at several together (``LAW@A+B``), or ``LAW@*``: the law at each of
     ``rig``'s sites in turn (``mechanism_sites``), each a candidate of its own.
+    ``default`` stands for the default list, ``*@*`` for every law that has
+    sites (a candidate everywhere or not) at each of them.
 
     Returns
     -------
@@ -138,9 +140,13 @@ def candidate_list(names=None, rig=None):
         A name that is not a mechanism, a site the law has not, or (with
         ``rig``) a site the rig has not.
     """
-    names = sorted(n for n in MECHANISMS if MECHANISMS[n].candidate) if names is None else list(names)
+    default = sorted(n for n in MECHANISMS if MECHANISMS[n].candidate)
+    names = default if names is None else list(names)
+    names = [m for n in names for m in (default if n == "default" else [n])]
+    names = [m for n in names for m in ([f"{law}@*" for law in sorted(MECHANISMS) if MECHANISMS[law].site]
+                                        if n == "*@*" else [n])]
     out = []
-    for name in names:
+    for name in dict.fromkeys(names):
         entry = mechanism_type(name)  # unknown laws and sites on a law without them say so
         law, _, site = name.partition("@")
         sites = mechanism_sites(rig, law) if rig is not None and site else None

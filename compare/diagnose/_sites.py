@@ -10,18 +10,31 @@ weighs the residual, each channel's mean removed (the offsets are free),
 and sites of one law whose signatures' cosines all reach ``SITES_ALIKE``
 are joined (complete linkage: every pair in a set alike) into one
 candidate acting at all of them, ``LAW@A+B``. One simulation per site.
+
+Then the sites are screened (``screen_sites``) before any nonlinear fit:
+each joined candidate's signature added to the rig parameters'
+sensitivities as one more column of the linearized least-squares problem
+on the updated model's residual, its improvement is what it explains that
+no parameter change does. Sites below ``SCREEN_SHARE`` of the best are not
+fitted; their signatures still enter the null test, whose threshold is the
+largest improvement over every candidate tried (the multiple-testing cost
+of many sites).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ._hypotheses import _grid_job, _pool, _weighted_signal
+from ._hypotheses import REFINE_FRACTION, _grid_job, _pool, _weighted_signal
 
-__all__ = ["join_alike_sites", "alike_groups", "SITES_ALIKE"]
+__all__ = ["join_alike_sites", "alike_groups", "screen_sites", "SITES_ALIKE", "SCREEN_SHARE"]
 
 # Issue 39's definition: two sites whose signatures' cosine is below this are told apart.
 SITES_ALIKE = 0.9
+# A site is fitted when its linearized improvement reaches this share of the best site's: the share below
+# which a candidate's grid fit is not refined either (a cost rule; the site benchmark reports how often the
+# true site passed it).
+SCREEN_SHARE = REFINE_FRACTION
 
 
 def _shape(problem, signature):
@@ -81,24 +94,28 @@ def join_alike_sites(problem, ctx, candidates, base_sim, workers=2, alike=SITES_
         The same order, a joined group in its first member's place, named ``LAW@A+B``.
     report : list of dict
         Per law with two sites or more: ``law``, ``sites``, ``cosines`` (site x site) and ``groups``.
+    signatures : dict
+        Each site candidate's name (a joined one's too) -> its signature (n, c), the simulation at the bottom
+        of its range less ``base_sim`` (a joined group's the sum of its members'); None where it did not run.
     """
     by_law = {}
     for c in candidates:
         law, _, site = c["name"].partition("@")
         if site:
             by_law.setdefault(law, []).append(c)
-    tried = {law: cs for law, cs in by_law.items() if len(cs) > 1}
-    if not tried:
-        return list(candidates), []
-    jobs = [(c["name"], c["main"], c["range"][0]) for cs in tried.values() for c in cs]
+    if not by_law:
+        return list(candidates), [], {}
+    jobs = [(c["name"], c["main"], c["range"][0]) for cs in by_law.values() for c in cs]
     pool = _pool(workers, ctx)
     try:
-        sims = {name: sim for name, _, sim in pool.map(_grid_job, jobs)}
+        signatures = {name: None if sim is None else sim - base_sim for name, _, sim in pool.map(_grid_job, jobs)}
     finally:
         pool.close()
     joined, report = {}, []
-    for law, cs in tried.items():
-        shapes = [None if sims[c["name"]] is None else _shape(problem, sims[c["name"]] - base_sim) for c in cs]
+    for law, cs in by_law.items():
+        if len(cs) < 2:
+            continue
+        shapes = [None if signatures[c["name"]] is None else _shape(problem, signatures[c["name"]]) for c in cs]
         groups, cos = alike_groups(shapes, alike)
         sites = [c["name"].partition("@")[2] for c in cs]
         report.append({"law": law, "sites": sites, "cosines": np.round(cos, 4).tolist(),
@@ -106,7 +123,79 @@ def join_alike_sites(problem, ctx, candidates, base_sim, workers=2, alike=SITES_
         for g in groups:
             if len(g) > 1:
                 first = cs[g[0]]
-                joined[first["name"]] = dict(first, name=f"{law}@{'+'.join(sites[i] for i in g)}")
+                name = f"{law}@{'+'.join(sites[i] for i in g)}"
+                joined[first["name"]] = dict(first, name=name)
                 joined.update({cs[i]["name"]: None for i in g[1:]})
+                parts = [signatures[cs[i]["name"]] for i in g]
+                signatures[name] = None if any(p is None for p in parts) else sum(parts)
     out = [joined.get(c["name"], c) for c in candidates]
-    return [c for c in out if c is not None], report
+    return [c for c in out if c is not None], report, signatures
+
+
+def screen_sites(problem, candidates, signatures, residual, sensitivities, share=SCREEN_SHARE):
+    """The site candidates worth a nonlinear fit, from their linearized signatures.
+
+    Each site candidate's signature ``s`` joins the parameters' sensitivities
+    ``J`` as one more column (chi2-weighted, each channel's mean removed);
+    its linearized improvement is what it adds to the least-squares fit of
+    ``residual`` by ``J`` alone, ``(s_perp . r_perp)^2 / |s_perp|^2`` (``perp``:
+    out of ``J``'s span), and its amplitude the coefficient of the joint
+    fit (only its sign is used: a Coulomb law's signature at the bottom of
+    its range is no linear guide to its size). The screen is ranked on the
+    rig's span, not on the updated rig alone, because updating runs before
+    any mechanism and may have taken up a site's effect at its bounds: the
+    true site's column still explains what the parameters cannot
+    (Cauchy-Schwarz: in the linear model no other column explains more of
+    it). A site with a negative amplitude (the law would have to act
+    backwards) or an improvement below ``share`` of the best site's is not
+    fitted. Candidates without a site pass as they are, and so does a lone
+    site.
+
+    Parameters
+    ----------
+    problem : Problem
+    candidates : list of dict
+    signatures : dict
+        ``join_alike_sites``'s.
+    residual : ndarray (n, c)
+        The updated model's residual (SI), NaN where unmeasured.
+    sensitivities : list of ndarray (n, c)
+        The rig parameters' (``update_model``'s); [] without tolerances.
+
+    Returns
+    -------
+    kept : list of dict
+        ``candidates`` less the screened-out sites, in order.
+    report : list of dict
+        Per site candidate, best first: ``name``, ``improvement`` (chi2, linearized), ``fitted`` (bool).
+    screened_out : list of ndarray (n, c)
+        The signatures of the sites not fitted, for the null test.
+    """
+    sited = [c for c in candidates if "@" in c["name"] and signatures.get(c["name"]) is not None]
+    if len(sited) < 2:  # one site asked for by name is fitted: there is nothing to rank it against
+        return list(candidates), [], []
+    r = _shape(problem, np.nan_to_num(residual))
+    q = _span(np.column_stack([_shape(problem, s) for s in sensitivities]) if sensitivities
+              else np.zeros((r.size, 0)))
+    r_perp = r - q @ (q.T @ r)
+    scores = {}
+    for c in sited:
+        s = _shape(problem, signatures[c["name"]])
+        s_perp = s - q @ (q.T @ s)
+        ss = float(s_perp @ s_perp)
+        amplitude = float(s_perp @ r_perp) / ss if ss > 0 else 0.0
+        scores[c["name"]] = max(amplitude, 0.0) ** 2 * ss
+    best = max(scores.values())
+    fitted = {n for n, g in scores.items() if g > 0 and g >= share * best}
+    kept = [c for c in candidates if c["name"] not in scores or c["name"] in fitted]
+    report = sorted(({"name": n, "improvement": g, "fitted": n in fitted} for n, g in scores.items()),
+                    key=lambda e: -e["improvement"])
+    return kept, report, [signatures[n] for n in scores if n not in fitted]
+
+
+def _span(J, rcond=1e-10):
+    """An orthonormal basis of ``J``'s column space (directions below ``rcond`` of the largest dropped)."""
+    if not J.shape[1]:
+        return J
+    u, sv, _ = np.linalg.svd(J, full_matrices=False)
+    return u[:, sv > rcond * sv[0]] if sv[0] > 0 else u[:, :0]

@@ -132,6 +132,8 @@ class DiagnosisState:
     runnable: list = field(default_factory=list)
     skipped: list = field(default_factory=list)
     site_groups: list = field(default_factory=list)  # per law tried at its sites: which the recording joins
+    site_screen: list = field(default_factory=list)  # per site candidate: its linearized improvement, fitted or not
+    screened_out: list = field(default_factory=list)  # the signatures of the sites not fitted (for the null test)
     points: dict = field(default_factory=dict)
     scored: dict = field(default_factory=dict)
     joints: dict = field(default_factory=dict)

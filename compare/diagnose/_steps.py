@@ -63,7 +63,7 @@ from ._scale import machine_scale
 from ._second_round import second_round
 from ._state import NullTest, Recording
 from ._trials import SEPARATOR, first_maneuver
-from ._sites import join_alike_sites
+from ._sites import join_alike_sites, screen_sites
 from ._summary import significant_updates, stated_uncertainty, structure_energy
 from ._updating import (
     OFFSET_FINDING,
@@ -351,7 +351,13 @@ def fit_mechanisms(state):
     """Each runnable candidate fitted through the simulator on top of the updated model."""
     cands = candidate_list(state.candidate_names, state.rig)
     # A law at each of its sites: the sites the recording cannot tell apart become one candidate (``_sites``).
-    cands, site_groups = join_alike_sites(state.problem, state.ctx, cands, state.base_sim, workers=state.workers)
+    cands, site_groups, signatures = join_alike_sites(state.problem, state.ctx, cands, state.base_sim,
+                                                      workers=state.workers)
+    sensitivities = state.update["sensitivities"] if state.update is not None else []
+    cands, screen, screened_out = screen_sites(state.problem, cands, signatures, state.r_base, sensitivities)
+    if screen:
+        _note(state, "sites screened (linearized improvement): " + ", ".join(
+            f"{e['name']} {e['improvement']:.3g}{'' if e['fitted'] else ' (not fitted)'}" for e in screen))
     skipped, runnable = [], []
     maneuver = first_maneuver(state.nominal_ctx)
     for c in cands:
@@ -366,7 +372,7 @@ def fit_mechanisms(state):
                             progress=state.note)
     scored = {c["name"]: score_candidate(state.problem, c, points[c["name"]]) for c in runnable}
     return replace(state, candidates=cands, runnable=runnable, skipped=skipped, points=points, scored=scored,
-                   site_groups=site_groups)
+                   site_groups=site_groups, site_screen=screen, screened_out=screened_out)
 
 
 def refit_jointly(state):
@@ -481,6 +487,7 @@ def test_against_noise(state):
     best_res = state.r_base if best_name is None or scored[best_name]["value"] == 0 else problem.residual(
         scored[best_name]["sim"], scored[best_name]["evaluation"]["nuisance"])
     signatures = [s["signature_sim"] - state.base_sim for s in scored.values() if s["signature_sim"] is not None]
+    signatures += state.screened_out  # sites tried but not fitted raise the threshold as fitted ones do
     threshold, q = null_threshold(problem, best_res, signatures, seed=state.seed)
     z = np.where(problem.valid, best_res, 0.0) / state.recording.noise
     tau = autocorrelation_time(z)

@@ -11,9 +11,11 @@ from ._chain_link_friction import ChainLinkFriction
 from ._pulley_friction import PulleyFriction
 from ._pulley_inertia import PulleyInertia
 from ._rope_bending_damping import RopeBendingDamping
+from ._rope_damping_excess import RopeDampingExcess
 from ._sheave_bearing_damping import SheaveBearingDamping
 
 __all__ = ["MECHANISMS", "MechanismType"]
 
 MECHANISMS = {kind.name: kind for kind in (ChainLinkFriction(), PulleyFriction(), PulleyInertia(),
-                                           RopeBendingDamping(), SheaveBearingDamping(), AeroDrag())}
+                                           RopeBendingDamping(), RopeDampingExcess(), SheaveBearingDamping(),
+                                           AeroDrag())}

@@ -41,6 +41,10 @@ class MechanismType:
     site_kind : str
         For a segment law: the selector its ``default`` means (``ropes``,
         ``chains``), the segments its sites are.
+    rig_array : str
+        For a law that says a rig-file value is wrong rather than that physics
+        is missing: the kernel array of that value, which it scales (the one
+        exception to "zero in the nominal model"); "" otherwise.
     """
 
     name: str = ""
@@ -53,6 +57,7 @@ class MechanismType:
     candidate: bool = True
     site: str = ""
     site_kind: str = ""
+    rig_array: str = ""
 
     def apply(self, model, parameters):
         """Set the kernel's coefficients in ``model.arrays`` for ``parameters`` (a full dict, SI units)."""
@@ -109,3 +114,27 @@ def segments(model, which, default_kind):
     if which in model.seg_names:
         return [model.seg_names.index(which)]
     raise ValueError(f"unknown segments {which!r} (ropes, chains, all, or a segment name)")
+
+
+def damping_group_sites(rig):
+    """A rig's damping groups, name -> its ropes: each tolerance group (or rope) whose material damping has a
+    tolerance, then each rope in none of them on its own, in the rig file's order."""
+    groups = {p.name.split(".")[1]: tuple(p.targets) for p in rig.tolerances if p.field == "viscous_damping"}
+    covered = {seg for targets in groups.values() for seg in targets}
+    groups.update({seg: (seg,) for seg in rig.ropes if seg not in covered})
+    return groups
+
+
+def damping_groups(model, which):
+    """Segments a rope-type mechanism acts on: ``all``, a damping group's (``damping_group_sites``) or one rope's,
+    or several joined by ``+``."""
+    if which == "all":
+        return list(range(len(model.seg_names)))
+    groups = damping_group_sites(model.rig)
+    found = set()
+    for part in which.split("+"):
+        targets = groups.get(part, (part,) if part in model.seg_names else None)
+        if targets is None:
+            raise ValueError(f"unknown rope group {part!r} ({', '.join([*groups, 'all'])})")
+        found |= {model.seg_names.index(seg) for seg in targets}
+    return sorted(found)

@@ -1,0 +1,50 @@
+"""The site-resolved cases (``benchmarks/_site_cases.py``): what they hide, and how a verdict is scored."""
+
+from __future__ import annotations
+
+import pytest
+
+from dragline.benchmarks._site_cases import SITE_CASES, SITE_THRESHOLDS, _screened, beyond_range, site_cases, site_right
+from dragline.simulate import load_rig, mechanism_sites, mechanism_type
+
+
+def test_each_law_sits_at_a_site_of_the_dragline_at_its_multiples_of_the_threshold():
+    rig = load_rig()
+    for name in SITE_CASES:
+        law, _, site = name.partition("@")
+        assert site in mechanism_sites(rig, law), name
+    cases, left = site_cases(seed=9), beyond_range()
+    assert len(cases) + len(left) == 3 * len(SITE_CASES)
+    by_truth = {}
+    for name, value, _ in cases:
+        by_truth.setdefault(name, []).append(value / SITE_THRESHOLDS[name])
+        assert value <= mechanism_type(name).range[1]
+    for name, value, top in left:
+        by_truth.setdefault(name, []).append(value / SITE_THRESHOLDS[name])
+        assert value > top == mechanism_type(name).range[1]
+    for name, multiples in by_truth.items():
+        assert sorted(multiples) == pytest.approx([2, 5, 20], rel=5e-3), name
+    assert len({c[2] for c in cases}) == len(cases) and all(9500 <= c[2] < 9600 for c in cases)
+
+
+def test_the_right_site_is_the_true_one_or_a_small_set_holding_it():
+    cos = {"boom": 1.0, "hoist_cluster": -0.2}
+    name = "pulley_friction@boom"
+    assert site_right(name, "pulley_friction@boom", cos) == (True, True)
+    assert site_right(name, "pulley_friction@boom+hoist_cluster", cos) == (True, True)  # two sites at most
+    assert site_right(name, "pulley_friction@hoist_cluster", cos) == (True, False)
+    assert site_right(name, "pulley_friction", cos) == (True, False)  # everywhere: the law, not the site
+    assert site_right(name, "pulley_inertia@boom", cos) == (False, False)
+    assert site_right(name, "unexplained", cos) == (False, False)
+    chains = {"a": 1.0, "b": 0.95, "c": 0.93, "d": 0.5}
+    assert site_right("chain_link_friction@a", "chain_link_friction@a+b+c", chains) == (True, True)  # all alike
+    assert site_right("chain_link_friction@a", "chain_link_friction@a+b+d", chains) == (True, False)
+
+
+def test_the_screen_is_read_for_the_candidate_holding_the_true_site():
+    doc = {"site_screen": [{"name": "aero_drag@spreader_bar+hoist_cluster", "improvement": 5.0, "fitted": True},
+                           {"name": "aero_drag@bucket", "improvement": 0.5, "fitted": False},
+                           {"name": "pulley_friction@hoist_cluster", "improvement": 0.1, "fitted": True}]}
+    assert _screened(doc, "aero_drag@hoist_cluster") is True
+    assert _screened(doc, "aero_drag@bucket") is False
+    assert _screened(doc, "pulley_inertia@boom") is None
