@@ -43,7 +43,7 @@ __all__ += [
 ]
 from .diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_diagnosis_json, write_diagnosis_report
 from ._foxglove import write_results
-from ._machine_figure import MachinePicture, draw_machine, machine_picture, picture_at
+from ._machine_figure import MachinePicture, draw_machine, machine_picture, marked_sites, picture_at
 from .diagnose import (
     ERROR_ALONG_SIGNATURE,
     REFINE_XATOL,
@@ -64,7 +64,8 @@ from ._executor import DaskExecutor, Executor, ExecutorError, LocalExecutor, as_
 
 __all__ += ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
             "write_diagnosis_report", "write_results", "DIG_PEAKS",
-            "MachinePicture", "machine_picture", "picture_at", "draw_machine", "MachineScale", "machine_scale",
+            "MachinePicture", "machine_picture", "picture_at", "draw_machine", "marked_sites", "MachineScale",
+            "machine_scale",
             "detection_thresholds", "DecisionRules", "verdict_of_document", "rethresholded", "seconds_of_document",
             "SECOND_EXCESS_SHARE", "ERROR_ALONG_SIGNATURE", "SYSTEMATIC_FLOOR", "REFINE_XATOL",
             "SITES_ALIKE", "SCREEN_SHARE",

@@ -28,6 +28,7 @@ from ._modes import Modes, linear_modes
 from ._physics import (
     MECHANISMS,
     Mechanism,
+    damping_group_sites,
     make_mechanism,
     mechanism_names,
     mechanism_sites,

@@ -131,6 +131,11 @@ class Model:
                 out[:, i, k] = np.interp(t, a["reel_t"], a["point_pos"][:, i, k])
         return out
 
+    def ring_nodes(self, segment):
+        """Indices into ``node_positions``'s nodes of ``segment``'s rings, in order from its start."""
+        nodes = self.seg_nodes[segment]
+        return [j for j, (kind, _, _) in enumerate(nodes) if kind != KIND_PARTICLE][1:-1]
+
     def node_positions(self, states, segment, time=None):
         """Positions of a segment's nodes along the rope for each record.
 

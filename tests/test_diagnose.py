@@ -370,6 +370,11 @@ def test_the_verdict_in_words_says_none_and_unexplained_plainly():
 
     assert "within its noise" in verdict_words({"verdict": "none", "hypotheses": []})
     assert "no candidate mechanism explains it" in verdict_words({"verdict": "unexplained", "hypotheses": []})
+    # A law at a set of sites says where; a law that corrects a rig-file value says the file is wrong.
+    assert verdict_words({"verdict": "pulley_friction@boom+hoist_cluster", "hypotheses": []}) == (
+        "The model leaves out pulley_friction at boom or hoist_cluster.")
+    assert verdict_words({"verdict": "rope_damping_excess@wire_rope", "hypotheses": []}) == (
+        "The rig file's value is wrong: rope_damping_excess at wire_rope.")
 
 
 def test_the_steps_leave_their_input_state_as_it_was_and_compose_to_diagnose(nominal_measured, nominal_diagnosis):

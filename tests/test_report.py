@@ -119,6 +119,36 @@ def test_the_first_page_gives_the_verdict_every_channel_and_the_worst_one(case, 
     assert all(body in first for body in ("bucket", "spreader_bar", "hoist_cluster", "drag_cluster"))
 
 
+def test_the_machine_picture_knows_its_rings_and_marks_a_site():
+    # The rings are drawn where the rig file puts them: the boom's at the boom pulley's fixed point; a site
+    # name marks a ring, a rope, a damping group's ropes or a body, and nothing else.
+    from dragline.compare import machine_picture, marked_sites
+    from dragline.simulate import load_rig
+
+    rig = load_rig()
+    picture = machine_picture(rig)
+    rings = dict(picture.rings)
+    assert set(rings) == {"boom", "hoist_cluster"}
+    np.testing.assert_allclose(rings["boom"], [-5.314, 0.0, -4.1285], atol=1e-12)
+    ropes = [name for name, _, _ in picture.ropes]
+    bodies = [name for name, _, _ in picture.bodies]
+    assert marked_sites(picture, ["boom"]) == ([[s for s, _ in picture.rings].index("boom")], [], [])
+    _, marked, _ = marked_sites(picture, ["wire_rope"])
+    assert sorted(ropes[k] for k in marked) == ["drag_rope", "hoist_rope"]
+    assert marked_sites(picture, ["bucket", "dump_rope"]) == ([], [ropes.index("dump_rope")], [bodies.index("bucket")])
+    assert marked_sites(picture, ["derrick"]) == ([], [], [])
+    # drawn: a red ring around the boom's sheave, seen from the side (x, height)
+    from matplotlib.figure import Figure
+
+    from dragline.compare import draw_machine
+
+    ax = Figure().add_subplot()
+    draw_machine(ax, picture, sites=["boom"])
+    circles = [ln for ln in ax.lines if ln.get_marker() == "o"]
+    assert len(circles) == 1 and circles[0].get_markeredgecolor() == "tab:red"
+    np.testing.assert_allclose(np.ravel(circles[0].get_xydata()), [-5.314, 4.1285], atol=1e-12)
+
+
 def test_missing_channel_is_marked_not_silently_empty(report):
     text = pages_text(report)
     assert "bucket.q" in text[1] and "MISSING: no finite samples in the measured table" in text[1]

@@ -14,6 +14,7 @@ from matplotlib.ticker import NullFormatter
 
 import textwrap
 
+from ...simulate import MECHANISMS
 from .._compare import channel_kind
 from .._machine_figure import draw_machine
 from ._locate import low_pass
@@ -131,12 +132,16 @@ def verdict_words(doc):
     if verdict == "unexplained":
         return "The model misses the recording, and no candidate mechanism explains it."
     best = next((h for h in doc["hypotheses"] if h["name"] == verdict), None)
+    law, _, sites = verdict.partition("@")
+    what = law + (f" at {' or '.join(sites.split('+'))}" if sites else "")
+    lead = (f"The rig file's value is wrong: {what}" if MECHANISMS.get(law) is not None and MECHANISMS[law].rig_array
+            else f"The model leaves out {what}")
     if best is None:
-        return f"The model leaves out {verdict}."
+        return f"{lead}."
     p = best["main_parameter"]
     u = best["uncertainty"].get("interval_68")
     band = f" (68 %: {_f(u[0])} to {_f(u[1])})" if u else ""
-    return (f"The model leaves out {verdict}: {p} = {_f(best['parameters'][p], '.3g')}{band}; held-out RMS "
+    return (f"{lead}: {p} = {_f(best['parameters'][p], '.3g')}{band}; held-out RMS "
             f"{best['rms_before']:.2f} -> {best['rms_after']:.2f} times the noise.")
 
 
@@ -153,7 +158,8 @@ def _glance_page(pdf, diag):
     words.text(0, 1, "\n".join(textwrap.wrap(verdict_words(doc), 85)), va="top", fontsize=10, weight="bold")
     words.text(0, 0.35, "\n".join(textwrap.wrap("Why: " + doc["reason"], 120)[:5]), va="top", fontsize=7)
     if diag.machine is not None:
-        draw_machine(fig.add_subplot(grid[1, 0]), diag.machine)
+        sites = doc["verdict"].partition("@")[2]
+        draw_machine(fig.add_subplot(grid[1, 0]), diag.machine, sites=sites.split("+") if sites else ())
     _candidate_bars(fig.add_subplot(grid[1, 1]), doc)
     _worst_channel(fig.add_subplot(grid[2, :]), diag)
     pdf.savefig(fig)
