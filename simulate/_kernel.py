@@ -372,6 +372,7 @@ def _rhs(t, y, dy, m, work, update):
     point_pos = m.point_pos
     relax_damping = m.relax_damping
     body_cda = m.body_cda
+    body_lin_drag = m.body_lin_drag
     seg_cda = m.seg_cda
     air_density = m.air_density
     ring_visc = m.ring_visc
@@ -512,6 +513,8 @@ def _rhs(t, y, dy, m, work, update):
         drag = 0.0
         if body_cda[b] > 0.0:
             drag = 0.5 * air_density * body_cda[b] * np.sqrt(vx * vx + vy * vy + vz * vz)
+        if body_lin_drag[b] > 0.0:
+            drag += body_lin_drag[b]
         scale = m.body_accel_scale[b]
         for k in range(3):
             v = y[o + 3 + k]

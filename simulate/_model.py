@@ -185,7 +185,7 @@ KERNEL_FIELDS = (
     "ring_eA", "ring_eB", "ring_mu", "has_ring_friction", "seg_link_r",
     "ring_visc",
     "el_na", "el_nb", "bnode_body", "bnode_arm",
-    "part_accel_scale", "body_accel_scale",
+    "part_accel_scale", "body_accel_scale", "body_lin_drag",
 )  # fmt: skip
 
 # The kernel reads the model by name; numba compiles a namedtuple of arrays like a plain tuple.
@@ -369,6 +369,7 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         "part_accel_scale": np.ones(len(part_seg)),
         "body_accel_scale": np.ones(len(bodies)),
         "body_cda": np.zeros(len(bodies)),
+        "body_lin_drag": np.zeros(len(bodies)),  # N s/m: a force -c v on the body's mass centre
         "seg_cda": np.zeros(len(seg_names)),
         "air_density": 1.2,
         "has_joints": 0,

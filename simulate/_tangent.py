@@ -40,7 +40,7 @@ TANGENT_FIELDS = (
     "body_mass", "body_I", "body_Iinv", "bnode_arm", "el_ra", "el_rb",
     "seg_ks", "seg_kv", "seg_relax", "seg_len0", "seg_reel_off", "seg_rho", "seg_cda",
     "ring_added_mass", "ring_visc", "ring_mu", "body_cda", "reel_len", "point_pos",
-    "seg_bend_c", "seg_link_mu", "seg_link_r",
+    "seg_bend_c", "seg_link_mu", "seg_link_r", "body_lin_drag",
 )
 TangentModel = namedtuple("TangentModel", TANGENT_FIELDS)
 
@@ -439,7 +439,7 @@ def _body_tangent(b, y, dY, dacc, m, dm, work, tw):
     vx, vy, vz = y[o + 3], y[o + 4], y[o + 5]
     speed = np.sqrt(vx * vx + vy * vy + vz * vz)
     cda = m.body_cda[b]
-    drag = 0.5 * m.air_density * cda * speed
+    drag = 0.5 * m.air_density * cda * speed + m.body_lin_drag[b]
     p, q, r = y[o + 9], y[o + 10], y[o + 11]
     M0 = T[b, 0, 0] * mb[b, 0] + T[b, 1, 0] * mb[b, 1] + T[b, 2, 0] * mb[b, 2]
     M1 = T[b, 0, 1] * mb[b, 0] + T[b, 1, 1] * mb[b, 1] + T[b, 2, 1] * mb[b, 2]
@@ -450,7 +450,7 @@ def _body_tangent(b, y, dY, dacc, m, dm, work, tw):
     g0, g1, g2 = M0 - (q * hz - r * hy), M1 - (r * hx - p * hz), M2 - (p * hy - q * hx)
     for k in range(nd):
         dspeed = (vx * dY[o + 3, k] + vy * dY[o + 4, k] + vz * dY[o + 5, k]) / speed if speed > 0.0 else 0.0
-        ddrag = 0.5 * m.air_density * (dm.body_cda[b, k] * speed + cda * dspeed)
+        ddrag = 0.5 * m.air_density * (dm.body_cda[b, k] * speed + cda * dspeed) + dm.body_lin_drag[b, k]
         dmass = dm.body_mass[b, k]
         for c in range(3):
             v, dv = y[o + 3 + c], dY[o + 3 + c, k]

@@ -145,8 +145,8 @@ def test_the_candidates_at_each_site_of_a_law_are_candidates_of_their_own(rig):
     assert every[:5] == [c["name"] for c in candidate_list()] and len(every) == len(set(every))
     assert {"sheave_bearing_damping@boom", "aero_drag@bucket", "chain_link_friction@left_drag_chain",
             "rope_bending_damping@dump_rope"} <= set(every)
-    # the dragline's bodies, chains, rings (three laws), ropes, damping groups
-    assert len(every) == 5 + 4 + 6 + 2 + 2 + 3 + 2 + 3
+    # the dragline's bodies (two drag laws), chains, rings (three laws), ropes, damping groups
+    assert len(every) == 5 + 2 * 4 + 6 + 3 * 2 + 3 + 3
 
 
 def test_sites_are_joined_only_where_every_pair_is_alike():
@@ -219,6 +219,33 @@ def test_a_rope_types_damping_excess_is_the_rig_file_with_that_damping(rig):
     moved = by_law["seg_relax"] != nominal["seg_relax"]
     names = assemble(rig, man).seg_names
     assert sorted(n for n, m in zip(names, moved) if m) == ["drag_rope", "hoist_rope"]
+
+
+def test_linear_drag_decays_a_pendulums_swing_at_c_over_2m():
+    # A 1 kg bob on a 1 m string, no other loss (dissipation off): m x'' + c x' + (m g / l) x = 0, so the
+    # swing's amplitude falls as exp(-c t / 2m). The peaks' logarithms over 8 s give that rate to 1 %.
+    from dragline.simulate import make_mechanism, rig_from_dict
+
+    mass, c = 1.0, 0.2
+    rope = {"start": "fixed.pivot", "end": "bob.hook", "length": 1.0, "particles": 1, "weight_per_length": 1e-3,
+            "static_stiffness": 1e5, "viscous_stiffness": 1.0, "viscous_damping": 1.0}
+    rig = rig_from_dict({"g": 9.81, "fixed_points": {"pivot": [0.0, 0.0, -2.0]},
+                         "bodies": {"bob": {"mass": mass, "cg_body": [0, 0, 0], "inertia_diag": [1e-3] * 3,
+                                            "points": {"hook": [0, 0, 0]}, "position": [0.0, 0.0, -1.0]}},
+                         "ropes": {"string": rope}})
+    still = Maneuver([0.0])
+    model = assemble(rig, still, dissipation=False)
+    y0 = solve_statics(model).state.copy()
+    length = 2.0 + y0[2]
+    theta = math.radians(2.0)
+    y0[0], y0[2] = length * math.sin(theta), -2.0 + length * math.cos(theta)
+    y0[model.o_part: model.o_part + 3] = 0.5 * (y0[:3] + [0.0, 0.0, -2.0])
+    res = simulate(rig, still, physics=[make_mechanism("linear_drag@bob", c=c)], duration=8.0, rate_hz=1000,
+                   dissipation=False, initial_state=y0)
+    x = res.states[:, 0]
+    peaks = np.nonzero((x[1:-1] > x[:-2]) & (x[1:-1] >= x[2:]) & (x[1:-1] > 0))[0] + 1
+    rate = -np.polyfit(res.time[peaks], np.log(x[peaks]), 1)[0]
+    assert rate == pytest.approx(c / (2 * mass), rel=0.01)
 
 
 def test_a_set_of_sites_acts_at_each_of_them(rig):

@@ -47,12 +47,14 @@ def test_the_right_hand_sides_tangent_is_its_derivative_along_every_field(rig_na
     result = simulate(rig, duration=0.4, rate_hz=RATE_HZ)
     model, y = result.model, result.states[-1]
     arrays = dict(model.arrays)
-    # drag on every body and rope, and inertia and bearing damping at every sheave, so that each is
+    # drag (quadratic and linear) on every body, on every rope, and inertia and bearing damping at every
+    # sheave, so that each is
     # differentiated where it acts
     arrays["body_cda"] = np.full(model.n_bodies, 0.01)
     arrays["seg_cda"] = np.full(len(model.seg_names), 0.002)
     arrays["ring_added_mass"] = np.full(model.n_rings, 0.08)
     arrays["ring_visc"] = np.full(model.n_rings, 0.4)
+    arrays["body_lin_drag"] = np.full(model.n_bodies, 0.3)
     t = float(result.time[-1]) * 0.7  # inside the maneuver's table, between its rows
     rng = np.random.default_rng(5)
     rows = _acceleration_rows(model)
@@ -188,6 +190,17 @@ def test_air_drag_on_a_swinging_ball_matches_central_differences():
         return rig, maneuver, (make_mechanism("aero_drag", cd=3.0 * math.exp(x[0])),)
 
     _check_columns(build, np.zeros(1), np.array([0.5]), 1.0, ("drag",))
+
+
+def test_linear_drag_on_a_swinging_ball_matches_central_differences():
+    """A generic law at a site: linear drag on the ball alone (its coefficient)."""
+    rig = load_rig("pendulum")
+    maneuver = default_maneuver(rig)
+
+    def build(x):
+        return rig, maneuver, (make_mechanism("linear_drag@ball", c=0.3 * math.exp(x[0])),)
+
+    _check_columns(build, np.zeros(1), np.array([0.5]), 1.0, ("linear drag",))
 
 
 def test_an_output_of_the_states_and_the_rig_is_differentiated_with_them():

@@ -8,6 +8,7 @@ added to ``MECHANISMS`` below; the kernel coefficients it sets must exist in
 from ._aero_drag import AeroDrag
 from ._base import MechanismType
 from ._chain_link_friction import ChainLinkFriction
+from ._linear_drag import LinearDrag
 from ._pulley_friction import PulleyFriction
 from ._pulley_inertia import PulleyInertia
 from ._rope_bending_damping import RopeBendingDamping
@@ -16,6 +17,6 @@ from ._sheave_bearing_damping import SheaveBearingDamping
 
 __all__ = ["MECHANISMS", "MechanismType"]
 
-MECHANISMS = {kind.name: kind for kind in (ChainLinkFriction(), PulleyFriction(), PulleyInertia(),
+MECHANISMS = {kind.name: kind for kind in (ChainLinkFriction(), LinearDrag(), PulleyFriction(), PulleyInertia(),
                                            RopeBendingDamping(), RopeDampingExcess(), SheaveBearingDamping(),
                                            AeroDrag())}
