@@ -25,7 +25,7 @@ __all__ = ["BodySpec", "RopeSpec", "Rig", "RoughPose", "load_rig", "rig_from_dic
 DISCRETIZATION_LEVELS = ("low", "baseline", "medium", "high")
 # The machines that ship with the tool, by name (``--rig NAME``); the first is the default.
 BUILT_IN_RIGS = {"dragline": "data/rig.toml", "pendulum": "data/pendulum.toml", "slung_load": "data/slung_load.toml",
-                 "gantry_crane": "data/gantry_crane.toml"}
+                 "gantry_crane": "data/gantry_crane.toml", "hook_block_crane": "data/hook_block_crane.toml"}
 
 
 @dataclass(frozen=True)

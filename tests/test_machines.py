@@ -238,7 +238,31 @@ def test_the_gantry_cranes_two_falls_carry_everything_below_the_trolley():
     assert up[0] == pytest.approx(up[1], rel=1e-3)
 
 
-@pytest.mark.parametrize("name", ["pendulum", "slung_load", "gantry_crane"])
+def test_the_hook_blocks_four_falls_carry_everything_below_the_trolley_a_quarter_each():
+    """At rest the rope leaves the drum, the dead end and both sides of the head sheave (the trolley's three
+    points) in four falls: the vertical parts of the tensions where it leaves them sum to the weight of the
+    block, the payload, the slings and the rope, and each fall carries a quarter of it within the share of the
+    rope's own weight (the rope slides freely through all three sheaves)."""
+    from dragline.simulate._simulate import element_tensions
+
+    rig = load_rig("hook_block_crane")
+    run = simulate(rig, duration=0.01, rate_hz=100.0)
+    hoist, slings = rig.ropes["hoist_rope"], (rig.ropes["left_sling"], rig.ropes["right_sling"])
+    rope_weight = hoist.weight_per_length * run.table["hoist_rope.reel_length"].iloc[0]
+    weight = G * sum(b.mass for b in rig.bodies.values()) + sum(s.weight_per_length * s.length for s in slings)
+    weight += rope_weight
+    model = run.model
+    nodes = model.node_positions(run.states[:1], "hoist_rope", run.time[:1])[0]
+    tension = element_tensions(model, run.time[:1], run.states[:1], "hoist_rope")[0]
+    head = model.ring_nodes("hoist_rope")[1]  # the rings in order: block, head, block
+    ends = [(0, 1, 0), (len(nodes) - 1, len(nodes) - 2, len(tension) - 1), (head, head - 1, head - 1),
+            (head, head + 1, head)]  # (trolley node, the next node down the fall, the element between)
+    up = [tension[e] * (nodes[b] - nodes[a])[2] / np.linalg.norm(nodes[b] - nodes[a]) for a, b, e in ends]
+    assert sum(up) == pytest.approx(weight, rel=1e-6)
+    assert np.allclose(up, weight / 4, atol=rope_weight / 4)
+
+
+@pytest.mark.parametrize("name", ["pendulum", "slung_load", "gantry_crane", "hook_block_crane"])
 def test_every_built_in_machine_runs_its_own_maneuver_with_its_own_channels(name, tmp_path):
     rig = load_rig(name)
     out = tmp_path / "t.csv"
