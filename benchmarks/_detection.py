@@ -32,17 +32,18 @@ __all__ = ["DETECTION_SEED", "bench_detection", "summary_lines"]
 DETECTION_SEED = 990_100
 
 
-def _session(folder, seed, rig):
+def _session(folder, seed, rig, duration=10.0):
     """A session of the nominal rig, nothing added, the truth at the finer level, as the lab films it."""
-    result = simulate(rig, default_maneuver(rig), TRUTH_DISCRETIZATION, [], duration=10.0, rate_hz=200.0)
+    result = simulate(rig, default_maneuver(rig), TRUTH_DISCRETIZATION, [], duration=duration, rate_hz=200.0)
     lab = lab_for_rig(rig, marker_positions(result)[1], seed)
     session, _ = synthesize_session(result, lab.cameras, seed=seed, wand_volume=lab.wand_volume,
                                     lframe=lab.lframe, wand_length=lab.wand_length)
     write_session_dir(folder, session, default_maneuver(rig))
 
 
-def bench_detection(seed=DETECTION_SEED, candidates=None, workers=2, progress=None):
-    """Each candidate's detection threshold on the rig's maneuver (the dragline's dig).
+def bench_detection(seed=DETECTION_SEED, candidates=None, workers=2, progress=None, rig_name=None):
+    """Each candidate's detection threshold on the rig's maneuver (the dragline's dig; ``rig_name``: another
+    built-in machine's, over its ``[demo]`` duration).
 
     Returns
     -------
@@ -51,17 +52,18 @@ def bench_detection(seed=DETECTION_SEED, candidates=None, workers=2, progress=No
         ``threshold`` (its main parameter's value), ``status``, ``main``,
         ``range`` and ``multiples`` (2x, 5x, 20x the threshold).
     """
-    rig = load_rig()
+    rig = load_rig(rig_name)
+    duration = rig.demo["duration"] if rig_name is not None and rig.demo else 10.0
     names = candidates or sorted(n for n in MECHANISMS if MECHANISMS[n].candidate)
     kinds = {n: mechanism_type(n) for n in names}  # a law, or a law at a site (LAW@SITE)
     sought = {n: (k.main, (k.range[0] / 100.0, k.range[1])) for n, k in kinds.items()}
     folder = tempfile.mkdtemp(prefix="dragline-detection-")
     try:
-        _session(f"{folder}/session", seed, rig)
+        _session(f"{folder}/session", seed, rig, duration)
         found = detection_thresholds(f"{folder}/session", rig, sought, workers=workers, progress=progress)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-    out = {"seed": seed, "own_error_chi2": found["own_error_chi2"], "candidates": {}}
+    out = {"seed": seed, "rig": rig_name or "dragline", "own_error_chi2": found["own_error_chi2"], "candidates": {}}
     for name, c in found["candidates"].items():
         p = c["threshold"]
         out["candidates"][name] = dict(c, main=kinds[name].main, range=list(kinds[name].range),
@@ -71,7 +73,8 @@ def bench_detection(seed=DETECTION_SEED, candidates=None, workers=2, progress=No
 
 def summary_lines(report):
     """Lines for the terminal: the target and each candidate's threshold with its multiples."""
-    lines = [f"detection thresholds on the dig (own error chi2 {report['own_error_chi2']:.4g}, seed {report['seed']}):"]
+    lines = [f"detection thresholds on {report.get('rig', 'dragline')}'s maneuver (own error chi2 "
+             f"{report['own_error_chi2']:.4g}, seed {report['seed']}):"]
     for name, c in report["candidates"].items():
         m = c["multiples"]
         lines.append(f"  {name}: {c['main']} = {c['threshold']:.3g} ({c['status']}; range {c['range'][0]:g}-"

@@ -753,7 +753,7 @@ def bench_command(args):
 
         report = bench_sites(seed=args.seed, workers=executor_from(getattr(args, "workers", 2) or 2,
                                                                    getattr(args, "scheduler", None)),
-                             keep=getattr(args, "keep_diagnoses", None),
+                             keep=getattr(args, "keep_diagnoses", None), rig_name=getattr(args, "rig", None),
                              progress=lambda line: print(line, file=sys.stderr))
         return report, site_summary_lines(report)
     cases, derivation, held_out = None, None, False

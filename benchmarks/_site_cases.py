@@ -39,16 +39,26 @@ from ._discovery import RIGHT_WITHIN, THRESHOLD_MULTIPLES, _film, _no_context, _
 __all__ = ["SITE_CASES", "SITE_THRESHOLDS", "SITE_CANDIDATES", "site_cases", "beyond_range", "bench_sites",
            "site_right", "truth_site_cosines", "summary_lines"]
 
-SITE_CASES = ("pulley_friction@hoist_cluster", "sheave_bearing_damping@boom", "aero_drag@bucket",
-              "rope_damping_excess@wire_rope")
-# Each case's detection threshold on the dig (``dragline bench detection --candidates ...``, seed 990100): the
-# value at which what it does, less what the rig's parameters can reproduce, weighs as much as the model's own
-# numerical error. Measured before the first run of this benchmark (2026-11-28; own error chi2 49,240).
+# Per machine: friction at one ring, a viscous bearing at one sheave, drag on one body, a rope type's damping
+# beyond its tolerance.
+SITE_CASES = {
+    "dragline": ("pulley_friction@hoist_cluster", "sheave_bearing_damping@boom", "aero_drag@bucket",
+                 "rope_damping_excess@wire_rope"),
+    "hook_block_crane": ("pulley_friction@head_sheave", "sheave_bearing_damping@block_sheave_1",
+                         "aero_drag@payload", "rope_damping_excess@hoist_rope"),
+}
+# Each case's detection threshold on the machine's maneuver (``dragline bench detection [--rig NAME]
+# --candidates ...``, seed 990100): the value at which what it does, less what the rig's parameters can
+# reproduce, weighs as much as the model's own numerical error. Measured before the first run of the
+# machine's cases (the dragline's 2026-11-28, own error chi2 49,240); None where not measured yet.
 SITE_THRESHOLDS = {
-    "pulley_friction@hoist_cluster": 0.000583,
-    "sheave_bearing_damping@boom": 0.00522,
-    "aero_drag@bucket": 3.05,
-    "rope_damping_excess@wire_rope": 0.242,
+    "dragline": {
+        "pulley_friction@hoist_cluster": 0.000583,
+        "sheave_bearing_damping@boom": 0.00522,
+        "aero_drag@bucket": 3.05,
+        "rope_damping_excess@wire_rope": 0.242,
+    },
+    "hook_block_crane": None,
 }
 SITE_CANDIDATES = ("default", "*@*")
 # How a millimetre and a hundredth of a radian of a body's pose weigh against each other in the truth's
@@ -57,22 +67,37 @@ POSITION_SCALE_M = 1e-3
 ANGLE_SCALE_RAD = 1e-2
 
 
-def site_cases(seed=0):
-    """``(law@site, value, seed)`` per case: each of ``SITE_CASES`` at each of ``THRESHOLD_MULTIPLES`` of its
-    threshold, but for magnitudes beyond the law's plausible range (``beyond_range``)."""
-    cases = [(name, v) for name, v in _magnitudes() if v <= mechanism_type(name).range[1]]
+def site_cases(seed=0, rig_name="dragline"):
+    """``(law@site, value, seed)`` per case: each of the machine's ``SITE_CASES`` at each of
+    ``THRESHOLD_MULTIPLES`` of its threshold, but for magnitudes beyond the law's plausible range
+    (``beyond_range``).
+
+    Raises
+    ------
+    ValueError
+        A machine without cases, or whose thresholds are not measured yet.
+    """
+    cases = [(name, v) for name, v in _magnitudes(rig_name) if v <= mechanism_type(name).range[1]]
     return [(name, value, seed * 1000 + 500 + k) for k, (name, value) in enumerate(cases)]
 
 
-def beyond_range():
+def beyond_range(rig_name="dragline"):
     """The magnitudes left out: beyond their law's plausible range, the physics no machine of this kind has
     (the dig shows a bearing's damping at the boom, or air drag on the bucket alone, only at twenty times
     what a sheave's grease or a bluff body's drag coefficient can give), ``(law@site, value, range top)``."""
-    return [(name, v, mechanism_type(name).range[1]) for name, v in _magnitudes() if v > mechanism_type(name).range[1]]
+    return [(name, v, mechanism_type(name).range[1]) for name, v in _magnitudes(rig_name)
+            if v > mechanism_type(name).range[1]]
 
 
-def _magnitudes():
-    return [(name, _three_digits(m * SITE_THRESHOLDS[name])) for name in SITE_CASES for m in THRESHOLD_MULTIPLES]
+def _magnitudes(rig_name):
+    if rig_name not in SITE_CASES:
+        raise ValueError(f"no site cases for {rig_name!r} (machines with them: {', '.join(SITE_CASES)})")
+    thresholds = SITE_THRESHOLDS[rig_name]
+    if thresholds is None:
+        raise ValueError(f"the site cases' thresholds on {rig_name} are not measured yet: run dragline bench "
+                         f"detection --rig {rig_name} --candidates {','.join(SITE_CASES[rig_name])} first")
+    return [(name, _three_digits(m * thresholds[name])) for name in SITE_CASES[rig_name]
+            for m in THRESHOLD_MULTIPLES]
 
 
 def _pose_channels(result):
@@ -85,7 +110,7 @@ def _pose_channels(result):
     return np.column_stack(cols)
 
 
-def truth_site_cosines(name, value, seed):
+def truth_site_cosines(name, value, seed, rig_name=None):
     """The cosine of each site of ``name``'s law with its own site, on the case's truth rig at ``value``.
 
     Returns
@@ -94,13 +119,14 @@ def truth_site_cosines(name, value, seed):
         Site -> cosine (1 for the true site).
     """
     law, _, site = name.partition("@")
-    rig, maneuver, discretization, _, _ = _truth_world(None, 0.0, seed)
-    base = _pose_channels(simulate(rig, maneuver, discretization, [], duration=10.0, rate_hz=200.0))
+    rig, maneuver, discretization, _, _ = _truth_world(None, 0.0, seed, rig_name=rig_name)
+    duration = _duration(rig_name)
+    base = _pose_channels(simulate(rig, maneuver, discretization, [], duration=duration, rate_hz=200.0))
     main = mechanism_type(law).main
     shapes = {}
     for s in mechanism_sites(rig, law):
         sim = _pose_channels(simulate(rig, maneuver, discretization, [make_mechanism(f"{law}@{s}", **{main: value})],
-                                      duration=10.0, rate_hz=200.0))
+                                      duration=duration, rate_hz=200.0))
         d = sim - base
         shapes[s] = (d - d.mean(axis=0)).ravel()
     own = shapes[site]
@@ -131,17 +157,23 @@ def _screened(doc, name):
     return holding[0]["fitted"] if holding else None
 
 
-def _run_site_case(name, value, seed, workdir=None, keep=False):
+def _duration(rig_name):
+    """The trial's length: the dig's 10 s, another machine's ``[demo]`` duration (as ``_discovery``'s cases)."""
+    machine = load_rig(rig_name)
+    return machine.demo["duration"] if rig_name is not None and machine.demo else 10.0
+
+
+def _run_site_case(name, value, seed, workdir=None, keep=False, rig_name=None):
     """One blind session with ``name`` hidden at ``value``, diagnosed from its directory, scored here."""
     own = workdir is None
     workdir = tempfile.mkdtemp(prefix="dragline-site-") if own else workdir
     folder = os.path.join(workdir, f"case{seed}")
-    machine = load_rig()
-    rig, maneuver, discretization, physics, _ = _truth_world(name, value, seed)
-    result = simulate(rig, maneuver, discretization, physics, duration=10.0, rate_hz=200.0)
+    machine = load_rig(rig_name)
+    rig, maneuver, discretization, physics, _ = _truth_world(name, value, seed, rig_name=rig_name)
+    result = simulate(rig, maneuver, discretization, physics, duration=_duration(rig_name), rate_hz=200.0)
     _film(result, machine, seed, folder, default_maneuver(machine))
-    cosines = truth_site_cosines(name, value, seed)
-    out = {"truth": name, "value": value, "seed": seed, "truth_cosines": cosines}
+    cosines = truth_site_cosines(name, value, seed, rig_name)
+    out = {"truth": name, "value": value, "seed": seed, "rig": rig_name or "dragline", "truth_cosines": cosines}
     t0 = time.perf_counter()
     try:
         doc = diagnose_path(folder, rig=machine, workers=1, seed=seed, candidates=list(SITE_CANDIDATES)).doc
@@ -165,8 +197,9 @@ def _run_site_case(name, value, seed, workdir=None, keep=False):
     return out
 
 
-def bench_sites(seed=0, workers=2, keep=None, progress=None):
-    """Run the site cases; ``keep``: a folder for every case's diagnosis (``case<seed>.json``).
+def bench_sites(seed=0, workers=2, keep=None, progress=None, rig_name=None):
+    """Run the site cases of the dragline (or of the built-in machine ``rig_name``); ``keep``: a folder for
+    every case's diagnosis (``case<seed>.json``).
 
     Returns
     -------
@@ -176,19 +209,22 @@ def bench_sites(seed=0, workers=2, keep=None, progress=None):
         ``screened_in``, the truth's ``truth_cosines``), ``right_law`` and
         ``right_site`` (counts), ``n_cases``, ``timing``.
     """
+    machine = rig_name or "dragline"
+    cases = site_cases(seed, machine)  # before any work: a machine without measured thresholds says so
     executor = as_executor(workers)
     workdir = tempfile.mkdtemp(prefix="dragline-sites-")
     started = time.perf_counter()
     session = executor.open(_no_context)
     try:
-        results = session.map(_run_site_case, [(*c, workdir, bool(keep)) for c in site_cases(seed)],
+        results = session.map(_run_site_case, [(*c, workdir, bool(keep), rig_name) for c in cases],
                               each=keeper(keep, progress, _line))
     finally:
         session.close()
         shutil.rmtree(workdir, ignore_errors=True)
-    return {"seed": seed, "cases": results, "n_cases": len(results), "candidates": list(SITE_CANDIDATES),
-            "beyond_range": [{"truth": n, "value": v, "range_top": top} for n, v, top in beyond_range()],
-            "thresholds": dict(SITE_THRESHOLDS), "multiples": list(THRESHOLD_MULTIPLES),
+    return {"seed": seed, "rig": machine, "cases": results, "n_cases": len(results),
+            "candidates": list(SITE_CANDIDATES),
+            "beyond_range": [{"truth": n, "value": v, "range_top": top} for n, v, top in beyond_range(machine)],
+            "thresholds": dict(SITE_THRESHOLDS[machine]), "multiples": list(THRESHOLD_MULTIPLES),
             "right_law": sum(bool(r.get("right_law")) for r in results),
             "right_site": sum(bool(r.get("right_site")) for r in results),
             "within": sum(bool(r.get("within")) for r in results),
@@ -207,8 +243,8 @@ def _line(r):
 
 def summary_lines(report):
     n = report["n_cases"]
-    lines = [f"{n} cases of a law at a site (seed {report['seed']}): right law {report['right_law']} "
-             f"({report['right_law'] / max(n, 1):.0%}), right site {report['right_site']} "
+    lines = [f"{n} cases of a law at a site on {report.get('rig', 'dragline')} (seed {report['seed']}): right law "
+             f"{report['right_law']} ({report['right_law'] / max(n, 1):.0%}), right site {report['right_site']} "
              f"({report['right_site'] / max(n, 1):.0%}), value within {RIGHT_WITHIN:.0%} {report['within']}, "
              f"true site through the screen {report['screened_in']}"]
     lines += ["  " + _line(r) for r in report["cases"]]

@@ -36,8 +36,10 @@ def add_parser(sub):
                    help="detection: the candidates whose thresholds are sought (a law, or a law at a site, "
                         "LAW@SITE; default every candidate)")
     p.add_argument("--rig", metavar="NAME", help="discovery --realism: another built-in machine's cases "
-                                                  "(pendulum, slung_load, gantry_crane; default the dragline); "
-                                                  "sensitivities: the machine whose parameters are differentiated")
+                                                  "(pendulum, slung_load, gantry_crane; with --sites "
+                                                  "hook_block_crane; default the dragline); detection: the "
+                                                  "machine whose thresholds are sought; sensitivities: the "
+                                                  "machine whose parameters are differentiated")
     p.add_argument("--workers", type=int, default=2, help="discovery, diagnosis: parallel processes")
     p.add_argument("--session", metavar="DIR",
                    help="diagnosis: the session to diagnose (default: the sample session's recipe, synthesised first)")
@@ -105,8 +107,8 @@ def _detection(args):
         from dragline.compare.diagnose import candidate_list
         from dragline.simulate import load_rig
 
-        candidate_list(names, load_rig())  # unknown names and sites: exit 2 before any work
-    report = bench_detection(candidates=names, workers=args.workers,
+        candidate_list(names, load_rig(args.rig))  # unknown names and sites: exit 2 before any work
+    report = bench_detection(candidates=names, workers=args.workers, rig_name=args.rig,
                              progress=lambda line: print(line, file=sys.stderr))
     return report, detection_summary_lines(report)
 
