@@ -54,3 +54,16 @@ def test_the_screen_is_read_for_the_candidate_holding_the_true_site():
     assert _screened(doc, "aero_drag@hoist_cluster") is True
     assert _screened(doc, "aero_drag@bucket") is False
     assert _screened(doc, "pulley_inertia@boom") is None
+
+
+def test_a_site_the_rig_has_not_and_a_machine_without_thresholds_exit_2_with_one_line():
+    import subprocess
+    import sys
+
+    for args, word in ((["detection", "--candidates", "pulley_friction@derrick"], "derrick"),
+                       (["discovery", "--realism", "--sites", "--rig", "hook_block_crane"], "not measured yet")):
+        out = subprocess.run([sys.executable, "-m", "dragline.pipelines.cli", "bench", *args], capture_output=True,
+                             text=True)
+        assert out.returncode == 2, out.stderr
+        lines = out.stderr.strip().splitlines()
+        assert len(lines) == 1 and word in lines[0] and "Traceback" not in out.stderr
