@@ -138,13 +138,14 @@ def site_right(name, verdict, cosines, alike=SITES_ALIKE):
 
     The law is right when the verdict names it, at any site or everywhere;
     the site when the verdict's sites hold the true one and are at most two,
-    or every one of them is alike to it (``cosines``, the truth model's).
+    or every one of them is alike to it (``cosines``, the truth model's, one
+    per site of the law). The law everywhere is the law at all its sites.
     """
     law, _, site = name.partition("@")
     named_law, at, named_sites = str(verdict).partition("@")
     if named_law != law:
         return False, False
-    sites = named_sites.split("+") if at else []
+    sites = named_sites.split("+") if at else list(cosines)
     return True, site in sites and (len(sites) <= 2 or all(cosines.get(s, 0.0) >= alike for s in sites))
 
 

@@ -167,6 +167,29 @@ def test_sites_are_joined_only_where_every_pair_is_alike():
     assert alike_groups([a, b, c], alike=0.8)[0] == [[0, 1, 2]]
 
 
+def test_a_site_candidate_that_is_its_law_everywhere_is_dropped_not_tied():
+    # The gantry crane has one sheave: friction at it is friction everywhere, and the two would tie. Friction
+    # at all three of the hook-block crane's sheaves is friction everywhere too; air drag at both its bodies
+    # is not air drag everywhere (that acts on the ropes as well), and friction at one sheave is not.
+    from dragline.compare.diagnose._hypotheses import candidate_list
+    from dragline.compare.diagnose._sites import drop_law_twins
+    from dragline.simulate import default_maneuver, load_rig
+
+    crane = load_rig("gantry_crane")
+    ctx = {"rig": crane, "maneuver": default_maneuver(crane), "discretization": "low"}
+    cands = candidate_list(["pulley_friction", "pulley_friction@*", "aero_drag", "aero_drag@*"], crane)
+    kept, dropped = drop_law_twins(cands, ctx)
+    assert dropped == ["pulley_friction@hook_sheave"]
+    assert [c["name"] for c in kept] == ["pulley_friction", "aero_drag", "aero_drag@hook", "aero_drag@payload"]
+    block = load_rig("hook_block_crane")
+    ctx = {"rig": block, "maneuver": default_maneuver(block), "discretization": "low"}
+    cands = candidate_list(["pulley_friction", "pulley_friction@head_sheave", "aero_drag", "aero_drag@block+payload",
+                            "pulley_friction@block_sheave_1+head_sheave+block_sheave_2"], block)
+    assert drop_law_twins(cands, ctx)[1] == ["pulley_friction@block_sheave_1+head_sheave+block_sheave_2"]
+    # without the law itself among the candidates nothing is a twin
+    assert drop_law_twins(cands[1:], ctx)[1] == []
+
+
 def test_the_site_screen_ranks_on_what_no_parameter_change_explains():
     # A linear world: the updated model's residual is the true site's signature less the part the
     # parameters took up (a quarter of a parameter direction added to the truth, absorbed). A decoy built

@@ -39,7 +39,10 @@ def test_the_right_site_is_the_true_one_or_a_small_set_holding_it():
     assert site_right(name, "pulley_friction@boom", cos) == (True, True)
     assert site_right(name, "pulley_friction@boom+hoist_cluster", cos) == (True, True)  # two sites at most
     assert site_right(name, "pulley_friction@hoist_cluster", cos) == (True, False)
-    assert site_right(name, "pulley_friction", cos) == (True, False)  # everywhere: the law, not the site
+    assert site_right(name, "pulley_friction", cos) == (True, True)  # everywhere: both sites, two at most
+    three = {"a": 1.0, "b": 0.95, "c": 0.2}
+    assert site_right("pulley_friction@a", "pulley_friction", three) == (True, False)  # not all alike
+    assert site_right("pulley_friction@a", "pulley_friction", {"a": 1.0, "b": 0.95, "c": 0.92}) == (True, True)
     assert site_right(name, "pulley_inertia@boom", cos) == (False, False)
     assert site_right(name, "unexplained", cos) == (False, False)
     chains = {"a": 1.0, "b": 0.95, "c": 0.93, "d": 0.5}

@@ -25,9 +25,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...simulate import assemble, make_mechanism, mechanism_sites
 from ._hypotheses import REFINE_FRACTION, _grid_job, _pool, _weighted_signal
+from ._trials import first_maneuver
 
-__all__ = ["join_alike_sites", "alike_groups", "screen_sites", "SITES_ALIKE", "SCREEN_SHARE"]
+__all__ = ["join_alike_sites", "alike_groups", "drop_law_twins", "screen_sites", "SITES_ALIKE", "SCREEN_SHARE"]
 
 # Issue 39's definition: two sites whose signatures' cosine is below this are told apart.
 SITES_ALIKE = 0.9
@@ -130,6 +132,44 @@ def join_alike_sites(problem, ctx, candidates, base_sim, workers=2, alike=SITES_
                 signatures[name] = None if any(p is None for p in parts) else sum(parts)
     out = [joined.get(c["name"], c) for c in candidates]
     return [c for c in out if c is not None], report, signatures
+
+
+def drop_law_twins(candidates, ctx):
+    """``candidates`` less each site candidate that is its law everywhere, when that law is a candidate too.
+
+    A law at every one of its sites can be the law everywhere - friction at
+    all three sheaves of a crane's block and trolley is friction at every
+    ring - and two identical candidates tie, so that neither could be named.
+    Whether the two are one model is asked of the kernel: the same
+    coefficients at the same value (air drag at every body is not air drag
+    everywhere, which acts on the ropes too).
+
+    Returns
+    -------
+    kept : list of dict
+    dropped : list of str
+        The site candidates dropped, each its law's twin.
+    """
+    names = {c["name"] for c in candidates}
+    rig = ctx["rig"]
+    dropped = []
+    for c in candidates:
+        law, at, sites = c["name"].partition("@")
+        if at and law in names and set(sites.split("+")) == set(mechanism_sites(rig, law)):
+            value = c["range"][0]
+            if _arrays_equal(_arrays(c["name"], c["main"], value, ctx), _arrays(law, c["main"], value, ctx)):
+                dropped.append(c["name"])
+    return [c for c in candidates if c["name"] not in dropped], dropped
+
+
+def _arrays(name, main, value, ctx):
+    model = assemble(ctx["rig"], first_maneuver(ctx), ctx["discretization"],
+                     physics=[make_mechanism(name, **{main: value})])
+    return model.arrays
+
+
+def _arrays_equal(a, b):
+    return a.keys() == b.keys() and all(np.array_equal(np.asarray(a[k]), np.asarray(b[k])) for k in a)
 
 
 def screen_sites(problem, candidates, signatures, residual, sensitivities, share=SCREEN_SHARE):

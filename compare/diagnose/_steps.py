@@ -63,7 +63,7 @@ from ._scale import machine_scale
 from ._second_round import second_round
 from ._state import NullTest, Recording
 from ._trials import SEPARATOR, first_maneuver
-from ._sites import join_alike_sites, screen_sites
+from ._sites import drop_law_twins, join_alike_sites, screen_sites
 from ._summary import significant_updates, stated_uncertainty, structure_energy
 from ._updating import (
     OFFSET_FINDING,
@@ -353,6 +353,9 @@ def fit_mechanisms(state):
     # A law at each of its sites: the sites the recording cannot tell apart become one candidate (``_sites``).
     cands, site_groups, signatures = join_alike_sites(state.problem, state.ctx, cands, state.base_sim,
                                                       workers=state.workers)
+    cands, twins = drop_law_twins(cands, state.ctx)
+    if twins:
+        _note(state, f"{', '.join(twins)}: the law everywhere, tried under its own name")
     sensitivities = state.update["sensitivities"] if state.update is not None else []
     cands, screen, screened_out = screen_sites(state.problem, cands, signatures, state.r_base, sensitivities)
     if screen:
