@@ -205,7 +205,8 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
                 f"(held-out threshold {threshold:.1f})")
         elif updates:
             verdict, reason = "none", (
-                f"the updated model fits within measurement noise (updates: {'; '.join(updates)}): no structured "
+                f"the updated model fits within measurement noise (the rig file's values it moves beyond their "
+                f"tolerance: {'; '.join(updates)}): no structured "
                 f"mismatch is left, and no candidate improves held-out data more than noise alone would "
                 f"(threshold {threshold:.1f})")
         else:
