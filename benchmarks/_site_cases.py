@@ -50,7 +50,8 @@ SITE_CASES = {
 # Each case's detection threshold on the machine's maneuver (``dragline bench detection [--rig NAME]
 # --candidates ...``, seed 990100): the value at which what it does, less what the rig's parameters can
 # reproduce, weighs as much as the model's own numerical error. Measured before the first run of the
-# machine's cases (the dragline's 2026-11-28, own error chi2 49,240); None where not measured yet.
+# machine's cases, 2026-11-28 (the dragline's own error chi2 49,240, the crane's 14,450; on the crane the hoist
+# rope's damping is not found within its law's range: its cases all lie beyond it); None where not measured.
 SITE_THRESHOLDS = {
     "dragline": {
         "pulley_friction@hoist_cluster": 0.000583,
@@ -58,7 +59,12 @@ SITE_THRESHOLDS = {
         "aero_drag@bucket": 3.05,
         "rope_damping_excess@wire_rope": 0.242,
     },
-    "hook_block_crane": None,
+    "hook_block_crane": {
+        "pulley_friction@head_sheave": 0.00183,
+        "sheave_bearing_damping@block_sheave_1": 0.00325,
+        "aero_drag@payload": 0.409,
+        "rope_damping_excess@hoist_rope": 20.0,
+    },
 }
 SITE_CANDIDATES = ("default", "*@*")
 # How a millimetre and a hundredth of a radian of a body's pose weigh against each other in the truth's
