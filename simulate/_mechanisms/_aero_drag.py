@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._base import MechanismType
+from ._base import MechanismType, bodies
 
 
 class AeroDrag(MechanismType):
@@ -25,13 +25,9 @@ class AeroDrag(MechanismType):
         # projected width times the length each particle stands for.
         a = model.arrays
         which = parameters["body"]
-        chosen = set(model.body_names if which == "all" else which.split("+"))
-        if chosen - set(model.body_names):
-            raise ValueError(f"body {which!r} unknown ({', '.join([*model.body_names, 'all'])})")
-        for b, name in enumerate(model.body_names):
-            if name in chosen:
-                sx, sy, sz = model.rig.bodies[name].size
-                a["body_cda"][b] = parameters["cd"] * (sx * sy + sy * sz + sx * sz) / 3.0
+        for b in bodies(model, which):
+            sx, sy, sz = model.rig.bodies[model.body_names[b]].size
+            a["body_cda"][b] = parameters["cd"] * (sx * sy + sy * sz + sx * sz) / 3.0
         for s, name in enumerate(model.seg_names if which == "all" else ()):
             a["seg_cda"][s] = parameters["cd"] * model.rig.ropes[name].diameter
         a["air_density"] = parameters["air_density"]

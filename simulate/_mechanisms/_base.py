@@ -93,6 +93,14 @@ def rings(model, which):
     return sorted(set(sites[which]))
 
 
+def bodies(model, which):
+    """Body indices a body mechanism acts on: ``all``, or one body's name, or several joined by ``+``."""
+    chosen = set(model.body_names if which == "all" else which.split("+"))
+    if chosen - set(model.body_names):
+        raise ValueError(f"body {which!r} unknown ({', '.join([*model.body_names, 'all'])})")
+    return [b for b, name in enumerate(model.body_names) if name in chosen]
+
+
 # What a segment selector names: the kinds of the rig file (``_rig_schema.ROPE_KINDS``).
 SELECTOR_KINDS = {"ropes": ("rope", "cable"), "chains": ("chain",)}
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._base import MechanismType
+from ._base import MechanismType, bodies
 
 
 class LinearDrag(MechanismType):
@@ -23,10 +23,5 @@ class LinearDrag(MechanismType):
     candidate = False
 
     def apply(self, model, parameters):
-        which = parameters["body"]
-        chosen = set(model.body_names if which == "all" else which.split("+"))
-        if chosen - set(model.body_names):
-            raise ValueError(f"body {which!r} unknown ({', '.join([*model.body_names, 'all'])})")
-        for b, name in enumerate(model.body_names):
-            if name in chosen:
-                model.arrays["body_lin_drag"][b] = parameters["c"]
+        for b in bodies(model, parameters["body"]):
+            model.arrays["body_lin_drag"][b] = parameters["c"]
