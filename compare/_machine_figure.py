@@ -70,8 +70,8 @@ def machine_picture(rig, maneuver=None):
 
 def marked_sites(picture, sites):
     """What of ``picture`` the site names ``sites`` point at: ``(rings, ropes, bodies)``, index lists into
-    ``picture.rings``, ``picture.ropes`` and ``picture.bodies`` (a ring's site, a rope or damping group, a
-    body; a ring is marked by its own site name or its rope's)."""
+    ``picture.rings``, ``picture.ropes`` and ``picture.bodies`` (a ring by its site name, a rope by its name or
+    its damping group's, a body by its name)."""
     sites = set(sites)
     ropes_named = {r for s in sites for r in picture.rope_groups.get(s, (s,))}
     ropes = [k for k, (name, _, _) in enumerate(picture.ropes) if name in ropes_named]
