@@ -1,4 +1,4 @@
-"""Sites the recording cannot tell apart, joined into one candidate (issue 39's "a set of sites").
+"""A law's sites: joined where the recording cannot tell them apart, twins of the law dropped, screened (issue 39).
 
 A law tried at each of a rig's sites (``LAW@*``) may have sites whose
 effects on the recording have one shape: the dragline's left and right
@@ -10,6 +10,8 @@ weighs the residual, each channel's mean removed (the offsets are free),
 and sites of one law whose signatures' cosines all reach ``SITES_ALIKE``
 are joined (complete linkage: every pair in a set alike) into one
 candidate acting at all of them, ``LAW@A+B``. One simulation per site.
+A site candidate that is then its law everywhere (every ring of a crane,
+joined) is dropped when the law itself is a candidate (``drop_law_twins``).
 
 Then the sites are screened (``screen_sites``) before any nonlinear fit:
 each joined candidate's signature added to the rig parameters'
