@@ -31,12 +31,17 @@ that law can be derived by hand, with the ropes as pure springs
     losing 4 T (e^(mu beta) - 1) / E'' per cycle, then the slide sticks;
 - a point-like body hanging on a stiff massless rope (a simple pendulum) in
   quadratic drag 0.5 rho cd A |v| v, whose swing must follow the pendulum's
-  drag ODE, integrated here independently.
+  drag ODE, integrated here independently; in linear drag c v its swing
+  decays as exp(-c t / 2m);
+- a rope type's damping beyond its tolerance is the rig file with that
+  damping (the law continues a rig value, so its signature is that value's).
 
 Rope and chain properties are the built-in 1/16-scale rig's (Table 2).
 Where the model misses the textbook behaviour the test is a strict xfail
 that states what was measured.
 """
+
+import math
 
 import numpy as np
 import pytest
@@ -56,6 +61,8 @@ SIGNATURE_TESTS = {
     "pulley_inertia": "test_pulley_inertia_lowers_the_slide_frequency_by_the_added_mass_without_decay",
     "aero_drag": "test_aero_drag_on_a_body_follows_the_quadratic_drag_pendulum",
     "sheave_bearing_damping": "test_sheave_bearing_damping_decays_the_slide_exponentially_at_c_over_r2",
+    "linear_drag": "test_linear_drag_decays_a_pendulums_swing_at_c_over_2m",
+    "rope_damping_excess": "test_a_rope_types_damping_excess_is_the_rig_file_with_that_damping",
 }
 
 
@@ -326,6 +333,53 @@ def test_aero_drag_on_a_body_follows_the_quadratic_drag_pendulum():
     w = np.sqrt(G / arm)
     kappa = env["models"]["hyperbolic"]["quadratic_coefficient"]
     assert kappa == pytest.approx(4.0 * c_d * w / (3.0 * np.pi), rel=0.03)  # measured 10.07 vs 10.09
+
+
+def test_linear_drag_decays_a_pendulums_swing_at_c_over_2m():
+    # A 1 kg bob on a 1 m string, no other loss (dissipation off): m x'' + c x' + (m g / l) x = 0, so the
+    # swing's amplitude falls as exp(-c t / 2m). The peaks' logarithms over 8 s give that rate to 1 %.
+    from dragline.simulate import make_mechanism, rig_from_dict
+
+    mass, c = 1.0, 0.2
+    rope = {"start": "fixed.pivot", "end": "bob.hook", "length": 1.0, "particles": 1, "weight_per_length": 1e-3,
+            "static_stiffness": 1e5, "viscous_stiffness": 1.0, "viscous_damping": 1.0}
+    rig = rig_from_dict({"g": 9.81, "fixed_points": {"pivot": [0.0, 0.0, -2.0]},
+                         "bodies": {"bob": {"mass": mass, "cg_body": [0, 0, 0], "inertia_diag": [1e-3] * 3,
+                                            "points": {"hook": [0, 0, 0]}, "position": [0.0, 0.0, -1.0]}},
+                         "ropes": {"string": rope}})
+    still = Maneuver([0.0])
+    model = assemble(rig, still, dissipation=False)
+    y0 = solve_statics(model).state.copy()
+    length = 2.0 + y0[2]
+    theta = math.radians(2.0)
+    y0[0], y0[2] = length * math.sin(theta), -2.0 + length * math.cos(theta)
+    y0[model.o_part: model.o_part + 3] = 0.5 * (y0[:3] + [0.0, 0.0, -2.0])
+    res = simulate(rig, still, physics=[make_mechanism("linear_drag@bob", c=c)], duration=8.0, rate_hz=1000,
+                   dissipation=False, initial_state=y0)
+    x = res.states[:, 0]
+    peaks = np.nonzero((x[1:-1] > x[:-2]) & (x[1:-1] >= x[2:]) & (x[1:-1] > 0))[0] + 1
+    rate = -np.polyfit(res.time[peaks], np.log(x[peaks]), 1)[0]
+    assert rate == pytest.approx(c / (2 * mass), rel=0.01)
+
+
+def test_a_rope_types_damping_excess_is_the_rig_file_with_that_damping(rig):
+    # rope_damping_excess@GROUP says the rig file's damping of a tolerance group is wrong: the model with it is
+    # the model of the rig file whose group's viscous damping is 1 + excess times the value written, every
+    # rope of the group and no other (wire_rope: the hoist and drag ropes).
+    from dragline.simulate import apply_parameters, assemble, make_mechanism, mechanism_sites
+
+    man = Maneuver([0.0], {"hoist": [8.6], "drag": [4.2]})
+    assert mechanism_sites(rig, "rope_damping_excess") == ["wire_rope", "dump_rope", "chain"]
+    params = rig.tolerances
+    coords = np.array([math.log(2.5) if p.name == "ropes.wire_rope.viscous_damping" else 0.0 for p in params])
+    written, _ = apply_parameters(rig, man, params, coords)
+    by_law = assemble(rig, man, physics=[make_mechanism("rope_damping_excess@wire_rope", excess=1.5)]).arrays
+    by_file = assemble(written, man).arrays
+    nominal = assemble(rig, man).arrays
+    np.testing.assert_allclose(by_law["seg_relax"], by_file["seg_relax"], rtol=1e-12)
+    moved = by_law["seg_relax"] != nominal["seg_relax"]
+    names = assemble(rig, man).seg_names
+    assert sorted(n for n, m in zip(names, moved) if m) == ["drag_rope", "hoist_rope"]
 
 
 def test_every_mechanism_has_a_signature_test():

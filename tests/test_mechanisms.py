@@ -1,6 +1,5 @@
 """Optional mechanisms: each only removes energy, and leaves the rest pose alone."""
 
-import math
 
 import numpy as np
 import pytest
@@ -222,53 +221,6 @@ def test_the_site_screen_ranks_on_what_no_parameter_change_explains():
     assert len(out) == 3  # the three not fitted still weigh in the null test
     lone = screen_sites(problem, cands[:1] + cands[3:4], signatures, residual, [J0, J1])
     assert [c["name"] for c in lone[0]] == ["plain_law", "law@backwards"] and lone[1] == []
-
-
-def test_a_rope_types_damping_excess_is_the_rig_file_with_that_damping(rig):
-    # rope_damping_excess@GROUP says the rig file's damping of a tolerance group is wrong: the model with it is
-    # the model of the rig file whose group's viscous damping is 1 + excess times the value written, every
-    # rope of the group and no other (wire_rope: the hoist and drag ropes).
-    from dragline.simulate import apply_parameters, assemble, make_mechanism, mechanism_sites
-
-    man = Maneuver([0.0], {"hoist": [8.6], "drag": [4.2]})
-    assert mechanism_sites(rig, "rope_damping_excess") == ["wire_rope", "dump_rope", "chain"]
-    params = rig.tolerances
-    coords = np.array([math.log(2.5) if p.name == "ropes.wire_rope.viscous_damping" else 0.0 for p in params])
-    written, _ = apply_parameters(rig, man, params, coords)
-    by_law = assemble(rig, man, physics=[make_mechanism("rope_damping_excess@wire_rope", excess=1.5)]).arrays
-    by_file = assemble(written, man).arrays
-    nominal = assemble(rig, man).arrays
-    np.testing.assert_allclose(by_law["seg_relax"], by_file["seg_relax"], rtol=1e-12)
-    moved = by_law["seg_relax"] != nominal["seg_relax"]
-    names = assemble(rig, man).seg_names
-    assert sorted(n for n, m in zip(names, moved) if m) == ["drag_rope", "hoist_rope"]
-
-
-def test_linear_drag_decays_a_pendulums_swing_at_c_over_2m():
-    # A 1 kg bob on a 1 m string, no other loss (dissipation off): m x'' + c x' + (m g / l) x = 0, so the
-    # swing's amplitude falls as exp(-c t / 2m). The peaks' logarithms over 8 s give that rate to 1 %.
-    from dragline.simulate import make_mechanism, rig_from_dict
-
-    mass, c = 1.0, 0.2
-    rope = {"start": "fixed.pivot", "end": "bob.hook", "length": 1.0, "particles": 1, "weight_per_length": 1e-3,
-            "static_stiffness": 1e5, "viscous_stiffness": 1.0, "viscous_damping": 1.0}
-    rig = rig_from_dict({"g": 9.81, "fixed_points": {"pivot": [0.0, 0.0, -2.0]},
-                         "bodies": {"bob": {"mass": mass, "cg_body": [0, 0, 0], "inertia_diag": [1e-3] * 3,
-                                            "points": {"hook": [0, 0, 0]}, "position": [0.0, 0.0, -1.0]}},
-                         "ropes": {"string": rope}})
-    still = Maneuver([0.0])
-    model = assemble(rig, still, dissipation=False)
-    y0 = solve_statics(model).state.copy()
-    length = 2.0 + y0[2]
-    theta = math.radians(2.0)
-    y0[0], y0[2] = length * math.sin(theta), -2.0 + length * math.cos(theta)
-    y0[model.o_part: model.o_part + 3] = 0.5 * (y0[:3] + [0.0, 0.0, -2.0])
-    res = simulate(rig, still, physics=[make_mechanism("linear_drag@bob", c=c)], duration=8.0, rate_hz=1000,
-                   dissipation=False, initial_state=y0)
-    x = res.states[:, 0]
-    peaks = np.nonzero((x[1:-1] > x[:-2]) & (x[1:-1] >= x[2:]) & (x[1:-1] > 0))[0] + 1
-    rate = -np.polyfit(res.time[peaks], np.log(x[peaks]), 1)[0]
-    assert rate == pytest.approx(c / (2 * mass), rel=0.01)
 
 
 def test_a_set_of_sites_acts_at_each_of_them(rig):
