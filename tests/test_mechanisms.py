@@ -1,6 +1,5 @@
 """Optional mechanisms: each only removes energy, and leaves the rest pose alone."""
 
-
 import numpy as np
 import pytest
 
