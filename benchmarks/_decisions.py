@@ -117,6 +117,7 @@ def _document(doc):
         "mismatch_updated": [{k: e[k] for k in _MISMATCH_KEYS} for e in doc["mismatch_updated"][:1]],
         "mismatch_after": {"entries": [{k: e[k] for k in _MISMATCH_KEYS} for e in after.get("entries", [])[:1]]},
         "offsets_beyond_tolerance": doc.get("offsets_beyond_tolerance"),
+        "offsets_judged": doc.get("offsets_judged"),  # judged anew under another ``different_rig``
         "reason": doc["reason"],  # rule 1's text, for a document written before the key above
         "second_mechanism": second or None,
     }
@@ -218,6 +219,11 @@ def _statistics(records, field, base):
                 for x in (h["improvement"], h.get("resolved_improvement", 0.0) / base.resolved_min, credit):
                     if x is not None and x > 0:
                         values.add(float(base.model_error_share * excess**2 / (x * n_w)))
+            continue
+        if field == "different_rig":  # where the factor crosses an offset left after updating
+            judged = doc.get("offsets_judged") or {}
+            if judged.get("after_updating"):
+                values.update(abs(offset) / limit for offset, limit in judged["channels"].values())
             continue
         if field == "resolved_min":
             _, threshold = rethresholded(doc, base)

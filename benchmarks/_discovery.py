@@ -236,6 +236,10 @@ def _truth_world(name, value, seed, effect=True, rig_name=None, maneuver=None):
     physics = []
     if effect and name == "material_damping":  # out of the menu: every rope's and chain's damping scaled
         coords = np.array([math.log(value) if p.field == "viscous_damping" else x for p, x in zip(params, coords)])
+    elif effect and name is not None and name.startswith("another_rig:"):  # geometry beyond updating's reach
+        from ._another_rig import beyond_bounds
+
+        coords = beyond_bounds(params, coords, name.partition(":")[2], value)
     elif effect and name is not None and name.partition("@")[0] in MECHANISMS:  # a law, or a law at a site
         physics = [make_mechanism(name, **{mechanism_type(name).main: value})]
     truth_rig, truth_maneuver = apply_parameters(rig, maneuver or default_maneuver(rig), params, coords)
@@ -389,6 +393,10 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_
                    truth_score=h["score"])
     if doc.get("held_out"):
         out["held_out"] = doc["held_out"][0]["rms_noise"]
+    if world == "realistic":
+        from ._another_rig import another_rig_entries
+
+        out.update(another_rig_entries(doc))
     if doc["hypotheses"]:
         top = doc["hypotheses"][0]
         out.update(top=top["name"], top_score=top["score"], top_improvement=top["improvement"],
@@ -512,7 +520,13 @@ def _realistic_figures(results):
                      and "viscous_damping" in r.get("reason", "")]
     nulls = none + oom
     false = sum(r["verdict"] in MECHANISMS for r in nulls)
+    another = None
+    if any(r["truth"].startswith("another_rig:") for r in results):
+        from ._another_rig import another_rig_figures
+
+        another = another_rig_figures(results)
     return {
+        "another_rig": another,
         "held_out_trial": _held_out_figures(results),
         "right_rate": float(np.mean([r["right"] for r in results])) if results else None,
         "n_right": sum(bool(r["right"]) for r in results),
@@ -691,6 +705,10 @@ def summary_lines(report):
                     f"{_fmt(sub['out_of_menu_wrong_name_rate'])} of {sub['n_out_of_menu']}; median mechanism error "
                     f"{_fmt(sub['median_mechanism_relative_error'])}; calibrated parameters off by a median "
                     f"{_fmt(sub['calibration_error_in_tolerances_median'])} tolerances (identifiable ones)")
+                if sub.get("another_rig"):
+                    from ._another_rig import summary_lines as another_lines
+
+                    lines += another_lines(sub["another_rig"])
                 for kind, h in (sub.get("held_out_trial") or {}).items():
                     m = h["median_rms"]
                     lines.append(f"held-out trial (another maneuver), {kind.replace('_', ' ')}: {h['n']} cases; the "
@@ -739,7 +757,8 @@ def bench_command(args):
     the ``REALISTIC_LIMIT_CASES``), ``args.verdict_set`` (with
     ``args.realism``: ``verdict_cases``), ``args.pairs`` (with
     ``args.realism``: two hidden mechanisms, ``_pairs``), ``args.sites`` (with
-    ``args.realism``: one law at one site, ``_site_cases``), ``args.workers``,
+    ``args.realism``: one law at one site, ``_site_cases``), ``args.another_rig`` (with
+    ``args.realism``: geometry beyond updating's reach, ``_another_rig``), ``args.workers``,
     ``args.scheduler`` (a Dask cluster; also ``DRAGLINE_SCHEDULER``) and
     ``args.keep_diagnoses``.
     """
@@ -769,6 +788,10 @@ def bench_command(args):
                   f"{how['effect_at_top_mm']:.3g} mm: " + ("no case (below the edge)" if how["values"] is None else
                                                           "cases at " + ", ".join(f"{v:.3g}" for v in how["values"])),
                   file=sys.stderr)
+    elif getattr(args, "realism", False) and getattr(args, "another_rig", False):
+        from ._another_rig import another_rig_cases
+
+        cases = another_rig_cases(args.seed)
     elif getattr(args, "realism", False) and getattr(args, "verdict_set", False):
         cases = verdict_cases(args.seed)
         held_out = True

@@ -45,6 +45,7 @@ from .diagnose import Diagnosis, diagnose, diagnose_path, load_recording, write_
 from ._foxglove import write_results
 from ._machine_figure import MachinePicture, draw_machine, machine_picture, marked_sites, picture_at
 from .diagnose import (
+    BOUND_TOLERANCES,
     ERROR_ALONG_SIGNATURE,
     REFINE_XATOL,
     SCREEN_SHARE,
@@ -68,7 +69,7 @@ __all__ += ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_d
             "machine_scale",
             "detection_thresholds", "DecisionRules", "verdict_of_document", "rethresholded", "seconds_of_document",
             "SECOND_EXCESS_SHARE", "ERROR_ALONG_SIGNATURE", "SYSTEMATIC_FLOOR", "REFINE_XATOL",
-            "SITES_ALIKE", "SCREEN_SHARE",
+            "SITES_ALIKE", "SCREEN_SHARE", "BOUND_TOLERANCES",
             "Executor", "LocalExecutor", "DaskExecutor", "ExecutorError", "executor_from", "as_executor"]
 
 

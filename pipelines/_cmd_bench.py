@@ -32,6 +32,10 @@ def add_parser(sub):
                    help="discovery --realism: one law hidden at one site per case (friction at a ring, a sheave's "
                         "bearing, drag on a body, a rope type's damping beyond its tolerance; 2, 5 and 20 times "
                         "its detection threshold), diagnosed with every law at each of its sites")
+    p.add_argument("--another-rig", action="store_true",
+                   help="discovery --realism: truth rigs whose geometry (fixed points, mass centres, reel zeros) lies "
+                        "1.5, 3 and 6 times beyond the updating's bounds, beside cases within tolerance, which bound "
+                        "the another-rig rule's factor from above and below")
     p.add_argument("--candidates", metavar="NAME,...",
                    help="detection: the candidates whose thresholds are sought (a law, or a law at a site, "
                         "LAW@SITE; default every candidate)")

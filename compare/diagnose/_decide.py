@@ -13,7 +13,7 @@ from ._updating import BOUND_TOLERANCES
 
 __all__ = ["decide", "DecisionRules", "verdict_of_document", "rethresholded", "leftover_share", "model_error_share",
            "EXPLAINED_MIN", "ADEQUATE_RMS", "LEFTOVER_SHARE",
-           "CONFOUNDED", "MODEL_ERROR_SHARE", "MODEL_ERROR_FULL"]
+           "CONFOUNDED", "MODEL_ERROR_SHARE", "MODEL_ERROR_FULL", "DIFFERENT_RIG", "offsets_too_far"]
 
 # A structured mismatch left: the best must explain this share of it.
 EXPLAINED_MIN = 0.75
@@ -52,6 +52,10 @@ MODEL_ERROR_SHARE = 0.25
 # calibration cases - the model's own error sets their thresholds where a
 # budget below full would matter - so it decides none of them.
 MODEL_ERROR_FULL = 0.5
+# With the rig's tolerances, offsets are judged after updating: an offset
+# this many times the calibration's accuracy (``_steps.OFFSET_LIMIT``) that
+# no parameter within its bounds explains is another rig.
+DIFFERENT_RIG = 5.0
 
 
 @dataclass(frozen=True)
@@ -74,6 +78,27 @@ class DecisionRules:
     model_error_share: float = MODEL_ERROR_SHARE
     resolved_min: float = RESOLVED_MIN
     model_error_full: float = MODEL_ERROR_FULL
+    different_rig: float = DIFFERENT_RIG
+
+
+def offsets_too_far(judged, after_updating, different_rig=DIFFERENT_RIG):
+    """The channels whose constant offset is beyond what calibration (and the rig's tolerances) explain.
+
+    Parameters
+    ----------
+    judged : dict
+        Per channel ``(offset, limit)``: the offset (m or rad) and the
+        calibration's accuracy at the machine's scale.
+    after_updating : bool
+        The offsets are those the updated parameters left: the limit is
+        ``different_rig`` times the accuracy (another rig's).
+
+    Returns
+    -------
+    list of str
+    """
+    factor = different_rig if after_updating else 1.0
+    return [c for c, (offset, limit) in judged.items() if abs(offset) > factor * limit]
 
 
 def model_error_share(excess, n_weighted, share=MODEL_ERROR_SHARE, full=MODEL_ERROR_FULL):
@@ -278,7 +303,8 @@ def verdict_of_document(document, rules=None):
     ----------
     document : dict
         ``diagnosis.json`` as written (``hypotheses``, ``null_test``,
-        ``mismatch_updated``, ``mismatch_after``, ``offsets_beyond_tolerance``;
+        ``mismatch_updated``, ``mismatch_after``, ``offsets_beyond_tolerance``
+        (or ``offsets_judged``, which ``rules.different_rig`` judges anew);
         a document written before that key says so in its reason).
     rules : DecisionRules, optional
 
@@ -292,6 +318,9 @@ def verdict_of_document(document, rules=None):
     rules = rules or DecisionRules()
     null = document["null_test"]
     beyond = document.get("offsets_beyond_tolerance")
+    judged = document.get("offsets_judged")
+    if judged is not None:  # judged anew under ``rules.different_rig``
+        beyond = offsets_too_far(judged["channels"], judged["after_updating"], rules.different_rig)
     offsets_ok = not beyond if beyond is not None else not document["reason"].startswith("constant offsets beyond")
     after = document.get("mismatch_after") or {}
     hypotheses, threshold = rethresholded(document, rules)

@@ -247,6 +247,7 @@ def diagnosis_of(state):
         "mismatch_after": {"model": state.after_name or ("updated" if update else "nominal"),
                            "entries": state.structured_after[:MAX_MISMATCH_ENTRIES]},
         "offsets_beyond_tolerance": list(state.too_far),
+        "offsets_judged": state.offsets_judged,
         "hypotheses": state.hypotheses,
         "second_mechanism": second,
         "updated_again": state.superseded,

@@ -151,6 +151,7 @@ class DiagnosisState:
     offsets: dict = field(default_factory=dict)
     offsets_left: dict | None = None
     too_far: list = field(default_factory=list)
+    offsets_judged: dict | None = None
     offsets_note: str | None = None
     verdict: str | None = None
     reason: str = ""

@@ -33,7 +33,7 @@ from ...simulate import make_mechanism, simulate
 from .._align import MAX_OFFSET, check_table, maneuver_stop_time, reels_stop_time
 from .._compare import channel_kind
 from ._band import band_improvement, significance
-from ._decide import decide, leftover_share, model_error_share
+from ._decide import DIFFERENT_RIG, decide, leftover_share, model_error_share, offsets_too_far
 from ._hypotheses import (
     REFINE_XATOL,
     Problem,
@@ -84,9 +84,6 @@ __all__ = ["STEPS", "OFFSET_LIMIT", "DIFFERENT_RIG", "SECOND_EXCESS_SHARE", "SPA
 # Constant offsets beyond these mean the geometry or calibration differs (the dragline's; a machine's own at
 # its scale, ``_scale``).
 OFFSET_LIMIT = {"position": 0.010, "angle": math.radians(2.0)}
-# With the rig's tolerances, offsets are judged after updating: an offset
-# this many times OFFSET_LIMIT that no parameter explains is another rig.
-DIFFERENT_RIG = 5.0
 # A second mechanism must explain at least this share of the chi2 the named
 # model leaves above noise (see ``test_second_mechanism``). Calibrated from
 # below on the trusted-verdict records (``bench decisions``): none of their
@@ -780,19 +777,18 @@ def judge_offsets(state):
             # A mechanism can shift the mean pose (rope held in a ring): the
             # offsets left are those of the joint refit with it.
             left = state.joints[after]["offsets"]
-        judged = {c: left[c] for c in channels if channel_kind(c) in OFFSET_LIMIT}
-        limit = {c: DIFFERENT_RIG * scale.floor(OFFSET_LIMIT, channel_kind(c)) for c in judged}
-    else:
-        judged = {c: offsets[c] for c in channels if channel_kind(c) in OFFSET_LIMIT}
-        limit = {c: scale.floor(OFFSET_LIMIT, channel_kind(c)) for c in judged}
-    too_far = [c for c in judged if abs(judged[c]) > limit[c]]
+    kept = left if update is not None else offsets
+    judged = {c: (float(kept[c]), scale.floor(OFFSET_LIMIT, channel_kind(c)))
+              for c in channels if channel_kind(c) in OFFSET_LIMIT}
+    too_far = offsets_too_far(judged, update is not None)
     offsets_note = None
     if too_far:
         offsets_note = ("constant offsets beyond what calibration " + ("and the rig's tolerances " if update else "")
-                        + "explain on " + ", ".join(f"{c} ({judged[c]:+.3g})" for c in too_far)
+                        + "explain on " + ", ".join(f"{c} ({judged[c][0]:+.3g})" for c in too_far)
                         + ": the rig geometry or the calibration differs from the model, so no dynamic mechanism "
                         "can be trusted")
-    return replace(state, offsets=offsets, offsets_left=left, too_far=too_far, offsets_note=offsets_note)
+    return replace(state, offsets=offsets, offsets_left=left, too_far=too_far, offsets_note=offsets_note,
+                   offsets_judged={"after_updating": update is not None, "channels": judged})
 
 
 def decide_verdict(state):
