@@ -10,7 +10,8 @@ fresh truth rigs simulated finer than the diagnosis:
   coordinates, a body's mass centre, a winch's reel zero), all of its
   parameters at once, set to ``ANOTHER_RIG_BOUNDS`` times the updating's
   bound (``BOUND_TOLERANCES`` tolerances), on the side the truth rig's own
-  draw put it; the right verdict names no mechanism;
+  draw put it; the right verdict names no mechanism (a recording refused
+  at the door, its rope lengths off the reel table, names none either);
 - **within tolerance**: every candidate at ``ANOTHER_RIG_WITHIN`` times its
   detection threshold (a mechanism shifts the mean pose) and
   ``ANOTHER_RIG_NONE`` with nothing added.
@@ -114,6 +115,8 @@ def another_rig_figures(results):
         "another_rig_named_a_mechanism": sum(r["verdict"] in MECHANISMS for r in another),
         "another_rig_offsets_said": sum("constant offsets" in r.get("reason", "") for r in another),
         "another_rig_rule_fired": sum(bool(r.get("offset_rule")) for r in another),
+        # Refused at the door: the recorded rope lengths off the reel table beyond its tolerance.
+        "another_rig_refused": sum(r["verdict"] == "error" for r in another),
         "n_within_tolerance": len(within),
         "within_tolerance_rule_fired": sum(bool(r.get("offset_rule")) for r in within),
         "factor_in_force": DecisionRules().different_rig,
@@ -136,7 +139,7 @@ def summary_lines(figures):
     return [
         f"another rig: {f['another_rig_right']} of {f['n_another_rig']} named no mechanism "
         f"({f['another_rig_named_a_mechanism']} named one); the offsets were said on {f['another_rig_offsets_said']}, "
-        f"the rule fired on {f['another_rig_rule_fired']}",
+        f"the rule fired on {f['another_rig_rule_fired']}, {f['another_rig_refused']} refused at the door",
         f"within tolerance: the rule fired on {f['within_tolerance_rule_fired']} of {f['n_within_tolerance']}",
         f"DIFFERENT_RIG ({fmt(f['factor_in_force'])} in force): from below {fmt(f['lowest'])} (case "
         f"{f['lowest_set_by']}), from above {fmt(f['highest'])} (case {f['highest_set_by']})",

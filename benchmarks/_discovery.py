@@ -360,7 +360,12 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_
         if keep:
             out["diagnosis"] = doc  # written by the caller: a Dask worker's disk is not the user's
     except ValueError as exc:
-        out.update(verdict="error", reason=str(exc), diagnosis_seconds=time.perf_counter() - t0)
+        # A recording of another rig may be refused at the door (its rope lengths off the reel table): it
+        # names no mechanism, which is that case's right answer; any other case refused is wrong.
+        another = name is not None and name.startswith("another_rig:")
+        out.update(verdict="error", reason=str(exc), diagnosis_seconds=time.perf_counter() - t0,
+                   right=another,
+                   out_of_menu=not (name is None or (name in MECHANISMS and MECHANISMS[name].candidate)))
         return out
     finally:
         shutil.rmtree(workdir if own else folder, ignore_errors=True)

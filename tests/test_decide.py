@@ -282,18 +282,24 @@ def test_offsets_beyond_calibration_accuracy_are_another_rig_without_tolerances(
     assert verdict == "unexplained" and "geometry or the calibration differs" in reason
 
 
-def test_with_tolerances_only_offsets_five_times_beyond_calibration_are_another_rig():
+def test_with_tolerances_only_offsets_beyond_the_factor_times_calibration_are_another_rig():
     from dragline.compare.diagnose._scale import MachineScale
     from dragline.compare.diagnose._steps import DIFFERENT_RIG, judge_offsets
 
-    assert DIFFERENT_RIG == 5.0
-    # What the updated parameters leave: 45 mm is a finding, not another rig; 55 mm is.
-    near = {"bucket.x": 0.045, "bucket.pitch": math.radians(9.0), "hoist_rope.length": 1.0}
+    # What the updated parameters leave: just under the factor times 10 mm (2 deg) is a finding, not
+    # another rig; just over it is.
+    near = {"bucket.x": 0.0095 * DIFFERENT_RIG, "bucket.pitch": math.radians(1.9 * DIFFERENT_RIG),
+            "hoist_rope.length": 1.0}
     assert judge_offsets(_offsets_state(near)).too_far == []
-    far = dict(near, **{"bucket.x": 0.055})
-    assert judge_offsets(_offsets_state(far)).too_far == ["bucket.x"]
-    assert judge_offsets(_offsets_state(dict(near, **{"bucket.pitch": math.radians(10.5)}))).too_far == [
-        "bucket.pitch"]
+    far = dict(near, **{"bucket.x": 0.0105 * DIFFERENT_RIG})
+    state = judge_offsets(_offsets_state(far))
+    assert state.too_far == ["bucket.x"]
+    # What was judged is kept, so that the document can be judged anew under another factor.
+    assert state.offsets_judged["after_updating"]
+    assert state.offsets_judged["channels"]["bucket.x"] == (pytest.approx(0.0105 * DIFFERENT_RIG), 0.010)
+    assert "hoist_rope.length" not in state.offsets_judged["channels"]
+    assert judge_offsets(_offsets_state(dict(near, **{"bucket.pitch": math.radians(2.1 * DIFFERENT_RIG)}))).too_far \
+        == ["bucket.pitch"]
     # A named mechanism refitted jointly: its own offsets are judged (a rope held in a ring shifts the pose).
     assert judge_offsets(_offsets_state(far, joint_offsets=near)).too_far == []
     # A machine half the dragline's pendulum length: lengths judged at half the limit, angles as they are.

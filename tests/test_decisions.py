@@ -259,3 +259,34 @@ def test_the_share_in_force_lies_between_the_committed_one_and_two_mechanism_rec
     assert out["in_interval"] and out["lowest"] < SECOND_EXCESS_SHARE < out["highest"]
     assert out["n_pairs_named"] >= 4 and out["missed_seconds"] == 0
     assert calibrate_second_share(records, share=1.05 * out["highest"], pairs=pairs)["missed_seconds"] >= 1
+
+
+def _with_offsets(record, ratio, after_updating=True):
+    """``record`` whose diagnosis left ``ratio`` times the calibration's 10 mm on the bucket's x."""
+    judged = {"after_updating": after_updating, "channels": {"bucket.x": [0.010 * ratio, 0.010],
+                                                             "bucket.pitch": [0.0, 0.0349]}}
+    return dict(record, document=dict(record["document"], offsets_judged=judged))
+
+
+def test_a_documents_offsets_are_judged_anew_under_another_factor():
+    # 60 mm left after updating: another rig at a factor of 5 (no mechanism trusted), a finding at 7; without
+    # tolerances (offsets judged before any updating) the factor does not apply and 60 mm is beyond 10 mm.
+    record = _with_offsets(_record("pulley_friction", 0.01, "pulley_friction", 1.0), 6.0)
+    assert verdict_of_document(record["document"], DecisionRules(different_rig=5.0)) == "unexplained"
+    assert verdict_of_document(record["document"], DecisionRules(different_rig=7.0)) == "pulley_friction"
+    before = _with_offsets(_record("pulley_friction", 0.01, "pulley_friction", 1.0), 6.0, after_updating=False)
+    assert verdict_of_document(before["document"], DecisionRules(different_rig=7.0)) == "unexplained"
+
+
+def test_the_another_rig_factor_is_calibrated_between_the_offsets_that_bound_it():
+    # A right name whose joint refit left 2.5 calibration accuracies, a recording of another rig whose
+    # geometry made it name pulley friction while leaving 6: only a factor in (2.5, 6) keeps the one and
+    # stops the other; a right "none" leaving 1.5 bounds nothing further.
+    records = [_with_offsets(_record("pulley_friction", 0.01, "pulley_friction", 1.0), 2.5),
+               _with_offsets(_record("another_rig:cg", 3.0, "pulley_friction", 1.0, out_of_menu=True), 6.0)]
+    out = calibrate_decisions(records, DecisionRules(different_rig=8.0))
+    assert out["current"] == {"right": 1, "false_names": 1}
+    factor = out["constants"]["different_rig"]
+    assert (factor["right"], factor["false_names"]) == (2, 0)
+    assert factor["intervals"] == [[pytest.approx(2.5), pytest.approx(6.0)]]
+    assert factor["calibrated"] == pytest.approx(4.25) and not factor["in_interval"]
