@@ -44,6 +44,8 @@ RECORDS = os.path.join(os.path.dirname(__file__), "data", "decision_records.json
 """The committed calibration records: the trusted-verdict set's seeds 92 and 94 (docs/diagnosis.md)."""
 PAIR_RECORDS = os.path.join(os.path.dirname(__file__), "data", "pair_records.json")
 """The committed two-mechanism records (``_pairs``), which bound ``SECOND_EXCESS_SHARE`` from above."""
+ANOTHER_RIG_RECORDS = os.path.join(os.path.dirname(__file__), "data", "another_rig_records.json")
+"""The committed another-rig records (``_another_rig``, seed 620), which calibrate ``DecisionRules.different_rig``."""
 
 # The model-error share and its full excess in force for documents written before their null test named them.
 MODEL_ERROR_SHARE_BEFORE_KEY = 0.25
@@ -377,5 +379,11 @@ def bench_command(args):
         with open(PAIR_RECORDS, encoding="utf-8") as f:
             pairs = json.load(f)["records"]
     report["second_excess_share"] = calibrate_second_share(records, pairs=pairs)
+    lines = summary_lines(report)
+    with open(ANOTHER_RIG_RECORDS, encoding="utf-8") as f:
+        another = calibrate_decisions(json.load(f)["records"])
+    report["different_rig"] = dict(another["constants"]["different_rig"], n_cases=another["n_cases"])
+    lines += ["another-rig records (seed 620):"] + [
+        line for line in summary_lines(dict(another, constants={"different_rig": report["different_rig"]}))]
     report["intervals"] = calibrate_error_along(load_interval_records())
-    return report, summary_lines(report) + interval_summary_lines(report["intervals"])
+    return report, lines + interval_summary_lines(report["intervals"])

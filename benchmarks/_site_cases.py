@@ -18,7 +18,10 @@ body's pose, a millimetre and a hundredth of a radian weighing alike, each
 channel's mean removed) reach cosine ``SITES_ALIKE`` with the true site's
 are not told apart from it. A verdict has the right law when it names the
 hidden law (at any site or everywhere), the right site when its sites hold
-the true one and are at most two, or all alike to it by that rule.
+the true one and are at most two, or all alike to it by that rule. A law
+that says a rig-file value is wrong (a rope type's damping) is the
+updating's to report while the value lies within its bounds: there "none"
+with that value moved beyond its tolerance is right (``rig_value_right``).
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ from dragline.simulate import default_maneuver, load_rig, make_mechanism, mechan
 from ._discovery import RIGHT_WITHIN, THRESHOLD_MULTIPLES, _film, _no_context, _three_digits, _truth_world, keeper
 
 __all__ = ["SITE_CASES", "SITE_THRESHOLDS", "SITE_CANDIDATES", "site_cases", "beyond_range", "bench_sites",
-           "site_right", "truth_site_cosines", "summary_lines"]
+           "site_right", "rig_value_right", "truth_site_cosines", "summary_lines"]
 
 # Per machine: friction at one ring, a viscous bearing at one sheave, drag on one body, a rope type's damping
 # beyond its tolerance.
@@ -155,6 +158,38 @@ def site_right(name, verdict, cosines, alike=SITES_ALIKE):
     return True, site in sites and (len(sites) <= 2 or all(cosines.get(s, 0.0) >= alike for s in sites))
 
 
+def rig_value_right(name, value, verdict, parameters, coordinates, calibration):
+    """``(right_law, right_site, updated)`` of a "none" verdict on a law that continues a rig-file value.
+
+    Such a law (``rig_field``: a rope type's damping beyond its tolerance)
+    says the rig file's value is wrong; within the updating's bounds that is
+    the updating's to say, in the verdict's reason, and "none" (no physics
+    missing) is the verdict. The truth's own value of the parameter, in
+    tolerances, is its drawn coordinate plus ln(1 + ``value``). Within one
+    tolerance of the file the file holds, and "none" is right. Beyond it,
+    "none" is right where the updating moved that parameter beyond its
+    tolerance on the truth's side (identifiable, beyond one tolerance and two
+    posterior sd: as the reason lists them); the site too where at most one
+    other parameter of that field moved so. ``updated``: the updated value
+    over the truth's (None where not moved). Any other verdict: (False, False, None).
+    """
+    law, _, site = name.partition("@")
+    field = mechanism_type(law).rig_field
+    if not field or verdict != "none":
+        return False, False, None
+    i = next(k for k, p in enumerate(parameters) if p.field == field and p.name.split(".")[1] == site)
+    p = parameters[i]
+    truth = coordinates[i] + math.log1p(value)
+    if abs(truth) <= p.tolerance:
+        return True, True, None
+    moved = {e["parameter"]: e["coordinate"] for e in calibration
+             if e["parameter"].endswith("." + field) and e["identifiable"] and abs(e["shift_in_tolerances"]) > 1.0
+             and abs(e["coordinate"]) > 2.0 * e["coordinate_sd"]}
+    right = bool(moved.get(p.name, 0.0) * truth > 0.0)
+    updated = math.exp(moved[p.name] - truth) if p.name in moved else None
+    return right, right and len(moved) <= 2, updated
+
+
 def _screened(doc, name):
     """Whether the screen let a candidate holding the true site through to the fits (None: no screen ran)."""
     law, _, site = name.partition("@")
@@ -176,7 +211,7 @@ def _run_site_case(name, value, seed, workdir=None, keep=False, rig_name=None):
     workdir = tempfile.mkdtemp(prefix="dragline-site-") if own else workdir
     folder = os.path.join(workdir, f"case{seed}")
     machine = load_rig(rig_name)
-    rig, maneuver, discretization, physics, _ = _truth_world(name, value, seed, rig_name=rig_name)
+    rig, maneuver, discretization, physics, coords = _truth_world(name, value, seed, rig_name=rig_name)
     result = simulate(rig, maneuver, discretization, physics, duration=_duration(rig_name), rate_hz=200.0)
     _film(result, machine, seed, folder, default_maneuver(machine))
     cosines = truth_site_cosines(name, value, seed, rig_name)
@@ -194,10 +229,15 @@ def _run_site_case(name, value, seed, workdir=None, keep=False, rig_name=None):
     hyp = {h["name"]: h for h in doc["hypotheses"]}
     top = hyp.get(doc["verdict"])
     fitted = top["parameters"][top["main_parameter"]] if top is not None else None
+    within = bool(right_law and fitted is not None and abs(fitted / value - 1.0) <= RIGHT_WITHIN)
+    if not right_law and mechanism_type(name.partition("@")[0]).rig_field:
+        right_law, right_site, updated = rig_value_right(name, value, doc["verdict"], machine.tolerances, coords,
+                                                         doc["calibration"].get("parameters", []))
+        out["updated_over_truth"] = updated
+        within = right_law and (updated is None or abs(updated - 1.0) <= RIGHT_WITHIN)
     out.update(verdict=doc["verdict"], reason=doc["reason"], diagnosis_seconds=time.perf_counter() - t0,
                simulations=doc["timing"]["simulations"], right_law=right_law, right_site=right_site,
-               fitted=fitted, within=bool(right_law and fitted is not None
-                                          and abs(fitted / value - 1.0) <= RIGHT_WITHIN),
+               fitted=fitted, within=within,
                screened_in=_screened(doc, name), sites=doc.get("sites"))
     if keep:
         out["diagnosis"] = doc

@@ -290,3 +290,24 @@ def test_the_another_rig_factor_is_calibrated_between_the_offsets_that_bound_it(
     assert (factor["right"], factor["false_names"]) == (2, 0)
     assert factor["intervals"] == [[pytest.approx(2.5), pytest.approx(6.0)]]
     assert factor["calibrated"] == pytest.approx(4.25) and not factor["in_interval"]
+
+
+def test_the_another_rig_factor_in_force_lies_in_the_interval_its_committed_records_calibrate():
+    # Seed 620's cases (geometry beyond updating's reach, and rigs within tolerance): the records give back
+    # their verdicts; the factor must exceed the largest offset a rig within tolerance left (0.48 of the
+    # calibration's accuracy); no another-rig recording named a mechanism with the rule or without it, so
+    # nothing bounds it from above. A factor below 0.48 turns a right verdict within tolerance wrong.
+    from dragline.benchmarks._decisions import ANOTHER_RIG_RECORDS
+
+    with open(ANOTHER_RIG_RECORDS, encoding="utf-8") as f:
+        records = json.load(f)["records"]
+    assert [verdict_of_document(r["document"]) for r in records] == [r["verdict"] for r in records]
+    factor = calibrate_decisions(records)["constants"]["different_rig"]
+    assert factor["in_interval"] and factor["false_names"] == 0
+    assert factor["intervals"] == [[pytest.approx(0.48, abs=0.01), None]]
+    another = [r for r in records if r["truth"].startswith("another_rig:")]
+    assert len(another) == 7
+    for rules in (DecisionRules(), DecisionRules(different_rig=float("inf"))):
+        assert all(verdict_of_document(r["document"], rules) in ("none", "unexplained") for r in another)
+    low = calibrate_decisions(records, DecisionRules(different_rig=0.4))["current"]
+    assert low["right"] < calibrate_decisions(records)["current"]["right"]

@@ -71,3 +71,40 @@ def test_a_site_the_rig_has_not_and_a_machine_without_site_cases_exit_2_with_one
         assert out.returncode == 2, out.stderr
         lines = out.stderr.strip().splitlines()
         assert len(lines) == 1 and word in lines[0] and "Traceback" not in out.stderr
+
+
+def _moved(parameter, coordinate, sd=0.1, tolerance=0.6931471805599453):
+    return {"parameter": parameter, "coordinate": coordinate, "coordinate_sd": sd, "identifiable": True,
+            "shift_in_tolerances": coordinate / tolerance}
+
+
+def test_a_rig_file_value_beyond_its_tolerance_is_the_updatings_to_report_within_its_bounds():
+    import math
+
+    import numpy as np
+
+    from dragline.benchmarks._site_cases import rig_value_right
+    from dragline.simulate import load_rig
+
+    parameters = load_rig(None).tolerances
+    wire = next(i for i, p in enumerate(parameters) if p.name == "ropes.wire_rope.viscous_damping")
+    tol = parameters[wire].tolerance  # ln 2
+    drawn = np.zeros(len(parameters))
+    drawn[wire] = 0.5 * tol
+    name = "rope_damping_excess@wire_rope"
+    # The truth 5.84 times the file's value on top of its draw: 2.5 + 0.5 tolerances above it.
+    truth = drawn[wire] + math.log(5.84)
+    up = _moved("ropes.wire_rope.viscous_damping", truth - 0.1)
+    right, site, updated = rig_value_right(name, 4.84, "none", parameters, drawn, [up])
+    assert right and site and updated == pytest.approx(math.exp(-0.1))
+    # Another verdict, the value moved the wrong way, or not beyond its tolerance: wrong.
+    assert rig_value_right(name, 4.84, "unexplained", parameters, drawn, [up])[:2] == (False, False)
+    assert rig_value_right(name, 4.84, "none", parameters, drawn, [_moved(up["parameter"], -1.5)])[0] is False
+    assert rig_value_right(name, 4.84, "none", parameters, drawn, [_moved(up["parameter"], 0.6)])[0] is False
+    # Not told apart: two other rope types' damping moved too (three sites); one other is a set of two.
+    others = [_moved("ropes.dump_rope.viscous_damping", 1.2), _moved("ropes.chain.viscous_damping", 1.0)]
+    assert rig_value_right(name, 4.84, "none", parameters, drawn, [up, *others])[:2] == (True, False)
+    assert rig_value_right(name, 4.84, "none", parameters, drawn, [up, others[0]])[:2] == (True, True)
+    # A truth the file's tolerance still holds (drawn 0.3 below, 1.2 times on top): "none" is right.
+    drawn[wire] = -0.3 * tol
+    assert rig_value_right(name, 0.2, "none", parameters, drawn, []) == (True, True, None)

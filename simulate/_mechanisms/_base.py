@@ -45,6 +45,10 @@ class MechanismType:
         For a law that says a rig-file value is wrong rather than that physics
         is missing: the kernel array of that value, which it scales (the one
         exception to "zero in the nominal model"); "" otherwise.
+    rig_field : str
+        For such a law: the field of the rig-file tolerance it continues
+        beyond its bounds (``RigParameter.field``, the site a tolerance group),
+        so that a value moved within them reads as that parameter's update.
     """
 
     name: str = ""
@@ -58,6 +62,7 @@ class MechanismType:
     site: str = ""
     site_kind: str = ""
     rig_array: str = ""
+    rig_field: str = ""
 
     def apply(self, model, parameters):
         """Set the kernel's coefficients in ``model.arrays`` for ``parameters`` (a full dict, SI units)."""

@@ -22,6 +22,7 @@ class RopeDampingExcess(MechanismType):
            "or all; not a missing law but the rig file's value being wrong (tried only at its sites)")
     candidate = False
     rig_array = "seg_relax"
+    rig_field = "viscous_damping"
 
     def apply(self, model, parameters):
         # Kelvin-Maxwell rope (kernel): the branch relaxes at Kv / Cv; more damping, slower relaxation.
