@@ -383,7 +383,7 @@ def bench_command(args):
     with open(ANOTHER_RIG_RECORDS, encoding="utf-8") as f:
         another = calibrate_decisions(json.load(f)["records"])
     report["different_rig"] = dict(another["constants"]["different_rig"], n_cases=another["n_cases"])
-    lines += ["another-rig records (seed 620):"] + [
-        line for line in summary_lines(dict(another, constants={"different_rig": report["different_rig"]}))]
+    lines += ["another-rig records (seed 620):"] + summary_lines(
+        dict(another, constants={"different_rig": report["different_rig"]}))
     report["intervals"] = calibrate_error_along(load_interval_records())
     return report, lines + interval_summary_lines(report["intervals"])
