@@ -23,8 +23,8 @@ def add_parser(sub):
                    help="discovery: truth rigs drawn within the rig's tolerances, simulated finer than the "
                         "diagnosis, with out-of-menu physics among the cases")
     p.add_argument("--verdict-set", action="store_true",
-                   help="discovery --realism: the trusted-verdict set, 60 cases (each candidate at 2, 5 and 20 times "
-                        "its detection threshold, twice; 20 with nothing added; 10 out of the menu)")
+                   help="discovery --realism: the trusted-verdict set, 64 cases (each candidate at 2, 5 and 20 times "
+                        "its detection threshold, twice; 20 with nothing added; 14 out of the menu, 10 of them beyond every law)")
     p.add_argument("--pairs", action="store_true",
                    help="discovery --realism: two hidden mechanisms per case (a dominant one at 20 times its "
                         "detection threshold, a second at 5 times), which bound the second round's share from above")

@@ -78,8 +78,11 @@ def test_the_verdict_set_has_the_issues_shares_and_multiples_of_each_threshold()
     assert names.count(None) >= 20
     out = [n for n in names if n is not None and n not in in_menu]
     assert len(out) >= 10
-    # at least six of them no law at a site can express (neither a mechanism of the simulator nor a rig value)
-    assert sum(n in ("camera_latency", "rope_creep") for n in out) >= 6
+    # at least ten of them no law at a site can express (neither a mechanism of the simulator nor a rig value)
+    assert sum(n in ("camera_latency", "rope_creep", "reel_scale") for n in out) >= 10
+    # added last: the cases the set held before keep their seeds (seed 7: 7500 the first, 7559 the last)
+    assert cases[0][2] == 7500 and cases[59][2] == 7559 and cases[59][0] is None
+    assert [c[0] for c in cases[60:]] == ["reel_scale"] * 4
     assert set(DETECTION_THRESHOLDS) == in_menu
     for name in in_menu:
         values = sorted(v for n, v, *_ in cases if n == name)
@@ -103,6 +106,21 @@ def test_rope_creep_lengthens_every_winch_rope_by_its_strain_over_the_trial():
         mid = np.argmin(abs(crept.time - (t0 + 5.0)))
         assert ratio[mid] == pytest.approx(1.0 + 3e-3 * (crept.time[mid] - t0) / 10.0)
     assert np.all(np.diff(crept.time) <= 0.01 + 1e-12)
+
+
+def test_a_reel_scale_pays_out_its_share_more_of_every_change_and_starts_where_the_table_does():
+    from dragline.benchmarks._discovery import reels_scaled
+
+    m = default_maneuver(load_rig())
+    scaled = reels_scaled(m, 0.01)
+    np.testing.assert_array_equal(scaled.time, m.time)
+    for winch, lengths in m.lengths.items():
+        change, moved = lengths - lengths[0], scaled.lengths[winch] - lengths[0]
+        assert moved[0] == 0.0 and np.allclose(moved, 1.01 * change)
+    # the dig: 1.5 m of hoist rope paid out, 2.8 m of drag rope hauled in; 1 % of that is 15 and 28 mm
+    assert (scaled.lengths["hoist"] - m.lengths["hoist"]).max() == pytest.approx(0.015, abs=1e-3)
+    assert (scaled.lengths["drag"] - m.lengths["drag"]).min() == pytest.approx(-0.028, abs=1e-3)
+    assert m.lengths["hoist"][-1] == pytest.approx(10.1)  # the input is not modified
 
 
 def test_a_false_name_is_any_mechanism_named_where_no_candidate_was_hidden():
