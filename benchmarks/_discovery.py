@@ -58,6 +58,9 @@ from dragline.simulate import (
     simulate,
 )
 
+from ._another_rig import ANOTHER_RIG, another_rig_cases, another_rig_entries, another_rig_figures, beyond_bounds
+from ._another_rig import summary_lines as another_rig_lines
+
 __all__ = ["MAGNITUDES", "LIMIT_CASES", "REALISTIC_MAGNITUDES", "REALISTIC_LIMIT_CASES", "DETECTION_THRESHOLDS",
            "default_cases", "realistic_cases", "verdict_cases", "creeping", "reels_scaled", "clopper_pearson_upper",
            "bench_discovery", "summary_lines", "bench_command"]
@@ -248,9 +251,7 @@ def _truth_world(name, value, seed, effect=True, rig_name=None, maneuver=None):
     physics = []
     if effect and name == "material_damping":  # out of the menu: every rope's and chain's damping scaled
         coords = np.array([math.log(value) if p.field == "viscous_damping" else x for p, x in zip(params, coords)])
-    elif effect and name is not None and name.startswith("another_rig:"):  # geometry beyond updating's reach
-        from ._another_rig import beyond_bounds
-
+    elif effect and name is not None and name.startswith(ANOTHER_RIG):  # geometry beyond updating's reach
         coords = beyond_bounds(params, coords, name.partition(":")[2], value)
     elif effect and name is not None and name.partition("@")[0] in MECHANISMS:  # a law, or a law at a site
         physics = [make_mechanism(name, **{mechanism_type(name).main: value})]
@@ -387,7 +388,7 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_
     except ValueError as exc:
         # A recording of another rig may be refused at the door (its rope lengths off the reel table): it
         # names no mechanism, which is that case's right answer; any other case refused is wrong.
-        another = name is not None and name.startswith("another_rig:")
+        another = name is not None and name.startswith(ANOTHER_RIG)
         out.update(verdict="error", reason=str(exc), diagnosis_seconds=time.perf_counter() - t0,
                    right=another,
                    out_of_menu=not (name is None or (name in MECHANISMS and MECHANISMS[name].candidate)))
@@ -424,8 +425,6 @@ def _run_case(name, value, seed, world="nominal", workdir=None, keep=False, rig_
     if doc.get("held_out"):
         out["held_out"] = doc["held_out"][0]["rms_noise"]
     if world == "realistic":
-        from ._another_rig import another_rig_entries
-
         out.update(another_rig_entries(doc))
     if doc["hypotheses"]:
         top = doc["hypotheses"][0]
@@ -551,9 +550,7 @@ def _realistic_figures(results):
     nulls = none + oom
     false = sum(r["verdict"] in MECHANISMS for r in nulls)
     another = None
-    if any(r["truth"].startswith("another_rig:") for r in results):
-        from ._another_rig import another_rig_figures
-
+    if any(r["truth"].startswith(ANOTHER_RIG) for r in results):
         another = another_rig_figures(results)
     return {
         "another_rig": another,
@@ -736,9 +733,7 @@ def summary_lines(report):
                     f"{_fmt(sub['median_mechanism_relative_error'])}; calibrated parameters off by a median "
                     f"{_fmt(sub['calibration_error_in_tolerances_median'])} tolerances (identifiable ones)")
                 if sub.get("another_rig"):
-                    from ._another_rig import summary_lines as another_lines
-
-                    lines += another_lines(sub["another_rig"])
+                    lines += another_rig_lines(sub["another_rig"])
                 for kind, h in (sub.get("held_out_trial") or {}).items():
                     m = h["median_rms"]
                     lines.append(f"held-out trial (another maneuver), {kind.replace('_', ' ')}: {h['n']} cases; the "
@@ -819,8 +814,6 @@ def bench_command(args):
                                                           "cases at " + ", ".join(f"{v:.3g}" for v in how["values"])),
                   file=sys.stderr)
     elif getattr(args, "realism", False) and getattr(args, "another_rig", False):
-        from ._another_rig import another_rig_cases
-
         cases = another_rig_cases(args.seed)
     elif getattr(args, "realism", False) and getattr(args, "verdict_set", False):
         cases = verdict_cases(args.seed)
