@@ -119,15 +119,18 @@ def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2, known_answer=Tru
             drawn.append(figure)
 
     names = list(read)
+    # The mapping says whether the drone and the load are tracked in one frame (no free offset on the load).
+    shared = _mapping_at(1.0).table.shared_frame
     report = leave_one_out([read[n][1] for n in names], [read[n][2] for n in names], names, progress=note,
-                           on_split=first_figure, rig=rig, workers=workers)
+                           on_split=first_figure, rig=rig, workers=workers, shared_frame=shared)
     report["rates_hz"] = {n: read[n][0] for n in names}
     if known_answer:
-        report["known_answer"] = _known_answer(read, workers, note)
+        report["known_answer"] = _known_answer(read, workers, note, shared_frame=shared)
     return report
 
 
-def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="ropes.rope.length"):
+def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="ropes.rope.length",
+                  shared_frame=False):
     """Every flight fitted together twice: with the rig file's rope length, and with it put ``wrong`` times off.
 
     The data do not change, so the updating should land on the same length
@@ -154,7 +157,7 @@ def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="rop
     for label, rig_doc in (("right_file", doc), ("wrong_file", wrong_doc)):
         started = time.perf_counter()
         out = diagnose([read[n][1] for n in names], [read[n][2] for n in names], rig=rig_from_dict(rig_doc),
-                       workers=workers, trial_names=names, candidates=()).doc
+                       workers=workers, trial_names=names, candidates=(), shared_frame=shared_frame).doc
         entries = {e["parameter"]: e for e in out["calibration"]["parameters"]}
         fits[label] = {"rope_length": float(rig_doc["ropes"]["rope"]["length"]),
                        "estimate": entries[parameter]["estimate"], "uncertainty": entries[parameter]["uncertainty"],

@@ -103,6 +103,9 @@ class TrackedTable(_Strict):
     quaternion: Literal["xyzw", "wxyz"] = Field("xyzw", description="the order of every quaternion's columns")
     stamp: Literal["header", "log"] = Field("header", description="in a bag: each message's header stamp, or the "
                                                                  "time the recorder logged it")
+    shared_frame: bool = Field(False, description="the bodies and the points are tracked in one frame by one system: "
+                                                  "a body's position is measured from the origin the points move "
+                                                  "the rig in, so the diagnosis fits it no constant offset")
 
     @model_validator(mode="after")
     def _clock_needs_rate(self):
@@ -122,6 +125,9 @@ class TrackedMapping(_Strict):
     def _something(self):
         if not self.bodies:
             raise ValueError("the mapping names no body: a recording must track one of the rig's bodies")
+        if self.table.shared_frame and not self.points:
+            raise ValueError("`shared_frame` places the bodies by the points the recording moves the rig with: "
+                             "the mapping tracks no point")
         return self
 
 
@@ -405,7 +411,8 @@ def _resampled(path, mapping, tracks, rows):
         if q is not None:
             out["rotation"][name] = R @ _quaternion_matrices(_resample_quaternions(q, resample)) @ R.T
     report = {"rows": int(rows), "rows_dropped": int(dropped), "rate_hz": 1.0 / step, "samples": int(time.size),
-              "off_step": off_step, "gaps": gaps, "point_gaps_bridged": bridged, "start_time_s": float(start)}
+              "off_step": off_step, "gaps": gaps, "point_gaps_bridged": bridged, "start_time_s": float(start),
+              "shared_frame": mapping.table.shared_frame}
     return TrackedPoses(time=time - start, positions=out["body"], rotations=out["rotation"], points=out["point"],
                         report=report)
 

@@ -93,6 +93,7 @@ def test_dropped_rows_shuffled_rows_and_a_gap_are_resampled_and_said(tmp_path, s
     (('"Ball QW", "Ball QX"', '"Ball QW", "Ball Q"'), ["no column 'Ball Q'", "Time (ms)"]),
     (('up = "+y"', 'up = "north"'), ["table.up", "'north'"]),
     (('time = "Time (ms)"', 'rate_hz = 100.0\ntime = "Time (ms)"'), ["clock once"]),
+    (('up = "+y"', 'up = "+y"\nshared_frame = true'), ["shared_frame", "tracks no point"]),
 ])
 def test_a_mapping_that_names_what_the_table_lacks_is_refused_in_one_line(tmp_path, swing, edit, words):
     csv, mapping = tmp_path / "take.csv", tmp_path / "take.toml"

@@ -91,7 +91,8 @@ class Diagnosis:
 
 
 def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candidates=None, workers=2,
-             seed=0, source=None, progress=None, trial_names=None, held_out=(), leave_one_out=False):
+             seed=0, source=None, progress=None, trial_names=None, held_out=(), leave_one_out=False,
+             shared_frame=False):
     """Diagnose a measured trajectory table against the nominal model.
 
     Parameters
@@ -128,6 +129,11 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         Where the table came from (``load_recording``), copied to the JSON.
     progress : callable, optional
         Receives one-line progress notes.
+    shared_frame : bool
+        The recording's positions are measured in the frame the rig is
+        driven in (a tracker's body beside the points it moves: the
+        mapping's ``shared_frame``): no free constant offset on them, in the
+        fit or in a held-out trial's prediction (``free_offsets``).
 
     Returns
     -------
@@ -167,13 +173,15 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         raise ValueError("leaving one trial out needs several trials")
     state = DiagnosisState(measured=measured, rig=rig, maneuver=maneuver, discretization=discretization,
                            candidate_names=candidates, workers=workers, seed=seed, source=source, note=progress,
-                           started=_time.perf_counter(), trial_names=trial_names, held_out=held_out)
+                           started=_time.perf_counter(), trial_names=trial_names, held_out=held_out,
+                           shared_frame=bool(shared_frame))
     for step in STEPS:
         state = step(state)
     result = diagnosis_of(state)
     if leave_one_out:
         split = _leave_one_out(measured, maneuver, list(trial_names), progress=progress, rig=rig,
-                               discretization=discretization, candidates=candidates, workers=workers, seed=seed)
+                               discretization=discretization, candidates=candidates, workers=workers, seed=seed,
+                               shared_frame=shared_frame)
         result.doc["leave_one_out"] = json_ready(split)
         result.doc["timing"]["seconds"] = _time.perf_counter() - state.started
     return result
@@ -265,6 +273,7 @@ def diagnosis_of(state):
                       "model_error_share_at_full": MODEL_ERROR_SHARE, "model_error_full": MODEL_ERROR_FULL,
                       "n_weighted": null.n_weighted},
         "channels": {c: {"noise": float(rec.noise[j]), "offset": state.offsets[c], "offset_nominal": float(b0[j]),
+                         "offset_free": bool(state.problem.offset_free[j]),
                          "structure_threshold": structure_threshold(c, rec.noise[j], rec.lowpass_width,
                                                                     rec.scale)}
                      for j, c in enumerate(channels)},
@@ -277,6 +286,7 @@ def diagnosis_of(state):
         "source": state.source or {},
         "settings": {"discretization": discretization if isinstance(discretization, str) else dict(discretization),
                      "candidates": [c["name"] for c in state.candidates], "decay_weight": DECAY_WEIGHT,
+                     "shared_frame": state.shared_frame,
                      "block_s": BLOCK_S, "lowpass_s": LOWPASS_S * rec.scale.time, "rate_hz": rec.rate_hz,
                      "machine_scale": {"swing_hz": rec.scale.swing_hz, "length": rec.scale.length,
                                        "time": rec.scale.time},
@@ -326,7 +336,9 @@ def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretizatio
     try:
         result = diagnose(*args, rig, discretization, candidates, workers, seed, source, progress,
                           trial_names=names[:len(paths)] if len(paths) > 1 else None, held_out=spare,
-                          leave_one_out=leave_one_out)
+                          leave_one_out=leave_one_out,
+                          shared_frame=any(src.get("tracked", {}).get("shared_frame", False)
+                                           for _, _, src in loaded_all))
     except (StaticsError, SimulationError):
         raise  # about the rig or the maneuver, not the recording
     except ValueError as exc:

@@ -261,15 +261,22 @@ class Problem:
         update settled on is not clipped back (a sheave inertia of 4e-4
         kg m^2 moved the rope-length alignment by 15 ms; clipped at 10 ms,
         the updated model scored 1.9 times the chi2 its update reached).
+    offset_free : ndarray (c,) of bool, optional
+        Which channels carry a free constant offset (all by default). A
+        channel measured in the frame the model is driven in (a tracker's
+        body beside the points it moves, ``shared_frame``) has none: its
+        mean is the model's to explain.
     """
 
     def __init__(self, time, measured, sigma, t_stop, regressors=(), prior_precision=None, prior_mean=None,
-                 shift_center=0.0, regressor_bounds=None):
+                 shift_center=0.0, regressor_bounds=None, offset_free=None):
         self.time = np.asarray(time, float)
         self.dt = float(self.time[1] - self.time[0])
         self.measured = np.asarray(measured, float)
         self.sigma = np.asarray(sigma, float)
         self.valid = np.isfinite(self.measured)
+        c = self.measured.shape[1]
+        self.offset_free = np.ones(c, bool) if offset_free is None else np.asarray(offset_free, bool).reshape(c)
         # Each channel's own stop (stacked trials, ``_trials``), or one for all.
         w = np.where(self.time[:, None] >= np.asarray(t_stop, float), DECAY_WEIGHT, 1.0)
         # Weight of each squared residual: sample weight / sigma^2, 0 if unmeasured.
@@ -296,7 +303,7 @@ class Problem:
                 break
             W = self.W * mask[:, None]
             sw = np.maximum(W.sum(0), 1e-300)
-            xc = self.regressors - (W * self.regressors).sum(1)[:, None, :] / sw
+            xc = self.regressors - self.offset_free * (W * self.regressors).sum(1)[:, None, :] / sw
             gram = np.einsum("inc,jnc->ij", xc * W, xc)
             self._fold_regressors[name] = (xc, gram)
 
@@ -305,13 +312,15 @@ class Problem:
         ``bounds`` (k, 2) on their coefficients (none by default)."""
         centre = self.shift_center if shift_center is None else shift_center
         return Problem(self.time, self.measured, self.sigma, self.t_stop, regressors, prior_precision, prior_mean,
-                       centre, bounds)
+                       centre, bounds, self.offset_free)
 
     def nuisance(self, sim, rate, fold):
-        """Least-squares offsets b (c,), clock shift delta (s) and regressor coefficients a (k,) on one fold."""
+        """Least-squares offsets b (c,), clock shift delta (s) and regressor coefficients a (k,) on one fold;
+        a channel without a free offset keeps b = 0."""
         W = self.W * self.folds[fold][:, None]
         r = self.m0 - sim
-        sw = np.maximum(W.sum(0), 1e-300)
+        # Dividing by infinity where the offset is not free: the channel's "mean" is 0 and nothing is centred.
+        sw = np.where(self.offset_free, np.maximum(W.sum(0), 1e-300), np.inf)
         rc = r - (W * r).sum(0) / sw
         dc = rate - (W * rate).sum(0) / sw
         if len(self.regressors):

@@ -5,7 +5,8 @@ A diagnosis fitted on some trials of a machine predicts the others
 then simulated with the nominal rig, with the rig as the fit updated it, and
 with that rig and the named mechanism (the joint refit's, where there was
 one). Only each channel's constant offset is fitted on the held-out trial
-(its own calibration origin): everything else is prediction. The residual is
+(its own calibration origin; none on the positions of a tracker that shares
+the model's frame): everything else is prediction. The residual is
 reported in noise units (1 = the trial's own noise) and per channel in SI.
 """
 
@@ -17,6 +18,7 @@ import numpy as np
 
 from ...simulate import SimulationError, StaticsError, apply_parameters, make_mechanism, simulate
 from ._hypotheses import channels_on
+from ._recording import free_offsets
 
 __all__ = ["held_out_entry", "HeldOut"]
 
@@ -40,10 +42,11 @@ def _models(state):
     return models
 
 
-def _residual_rms(measured, sim, noise):
-    """RMS residual in noise units over every measured sample, and per channel (SI), each channel's mean removed."""
+def _residual_rms(measured, sim, noise, offset_free):
+    """RMS residual in noise units over every measured sample, and per channel (SI), each channel's mean removed
+    where its offset is free (``_recording.free_offsets``)."""
     r = measured - sim
-    r = r - np.nanmean(r, axis=0)
+    r = r - np.where(offset_free, np.nanmean(r, axis=0), 0.0)
     z = r / noise
     return float(np.sqrt(np.nanmean(z * z))), [float(np.sqrt(np.nanmean(r[:, j] ** 2))) for j in range(r.shape[1])]
 
@@ -76,7 +79,8 @@ def held_out_entry(state, name, aligned, maneuver):
             rms[label] = None
             continue
         sims[label] = channels_on(run, ctx)
-        rms[label], per_channel[label] = _residual_rms(aligned["values"], sims[label], aligned["noise"])
+        rms[label], per_channel[label] = _residual_rms(aligned["values"], sims[label], aligned["noise"],
+                                                       free_offsets(aligned["channels"], state.shared_frame))
     series = HeldOut(name=name, time=aligned["time"], channels=list(aligned["channels"]),
                      measured=aligned["values"], predicted=sims, named=named)
     return {"trial": name, "rows": int(aligned["time"].size), "channels": list(aligned["channels"]),

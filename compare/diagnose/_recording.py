@@ -26,9 +26,10 @@ from ...simulate import (
     rope_channels,
 )
 from .._align import estimate_time_offset, read_trajectory_table
+from .._compare import channel_kind
 
 __all__ = ["load_recording", "candidate_channels", "check_channels", "moving_channels", "rope_bias_allowance",
-           "check_maneuver", "align_with_maneuver"]
+           "check_maneuver", "align_with_maneuver", "free_offsets"]
 
 # The reel table must explain the recorded rope lengths: after aligning the
 # clocks, the measured length may differ from the nominal simulation's
@@ -45,6 +46,21 @@ MIN_REEL_TRAVEL = 0.05
 MIN_DECAY_S = 2.0
 # A channel a recording measures on fewer than this share of its samples is not used.
 MEASURED_SHARE = 0.5
+
+
+def free_offsets(channels, shared_frame=False):
+    """Which channels carry a free constant offset: all, unless the positions share the model's frame.
+
+    A camera lab's reconstruction is calibrated on its own: each channel may
+    be off by a constant (section 3 of docs/diagnosis.md). A tracker that
+    measures a body in the same frame as the points that move the rig (the
+    load under a drone it also tracks: ``shared_frame`` in the mapping) puts
+    the body's position where the model must: a constant there is the
+    rig's geometry (a rope's length, an attachment), not calibration. Its
+    angles keep their offsets: a tracked body's axes are defined at a
+    rotation from the rig's that nobody writes down.
+    """
+    return np.array([not (shared_frame and channel_kind(ch) == "position") for ch in channels], bool)
 
 
 def _read_maneuver_arg(maneuver):
@@ -238,7 +254,8 @@ def moving_channels(channels, nominal, noise):
 
     A planar maneuver leaves the out-of-plane channels (a body's y, roll and
     yaw) at rest in the model, to the last bits: there the recording holds
-    noise alone, and the diagnosis has nothing to compare.
+    noise alone about a constant offset, and the diagnosis has nothing to
+    compare (unless the offset is not free: ``free_offsets``).
 
     Parameters
     ----------

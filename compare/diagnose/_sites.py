@@ -42,10 +42,12 @@ SCREEN_SHARE = REFINE_FRACTION
 
 
 def _shape(problem, signature):
-    """The signature as chi2 weighs it, each channel's mean over its measured samples removed, flattened."""
+    """The signature as chi2 weighs it, each channel's mean over its measured samples removed (a channel with a
+    free offset), flattened."""
     w = _weighted_signal(problem, signature)
     valid = problem.valid
-    means = np.array([w[valid[:, j], j].mean() if valid[:, j].any() else 0.0 for j in range(w.shape[1])])
+    means = np.array([w[valid[:, j], j].mean() if valid[:, j].any() and problem.offset_free[j] else 0.0
+                      for j in range(w.shape[1])])
     return np.where(valid, w - means, 0.0).ravel()
 
 

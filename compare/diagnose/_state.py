@@ -87,7 +87,9 @@ class DiagnosisState:
     trials the fit never sees, predicted at the end),
     ``discretization``, ``candidate_names`` (None: every candidate),
     ``workers`` (int or Executor), ``seed``, ``source``, ``note``
-    (progress callable) and ``started`` (perf_counter at the start).
+    (progress callable), ``started`` (perf_counter at the start) and
+    ``shared_frame`` (the positions measured in the frame the rig is
+    driven in: no free offset on them, ``_recording.free_offsets``).
     """
 
     measured: pd.DataFrame
@@ -102,6 +104,7 @@ class DiagnosisState:
     started: float = 0.0
     trial_names: tuple | None = None
     held_out: tuple = ()
+    shared_frame: bool = False
 
     # align_recording: the recording, the nominal run, the problem on the nominal rig; the held-out trials aligned
     held_aligned: list = field(default_factory=list)

@@ -54,6 +54,7 @@ from ._recording import (
     align_with_maneuver,
     check_channels,
     check_maneuver,
+    free_offsets,
     measured_rope_channels,
     moving_channels,
     rope_bias_allowance,
@@ -122,7 +123,8 @@ def align_recording(state):
                               offset=one["offset"], alignment=one["alignment"], windows=one["windows"],
                               lowpass_width=one["lowpass_width"], scale=one["scale"])
         ctx = one["ctx"]
-        problem = Problem(one["time"], one["values"], one["noise"], one["t_stop"])
+        problem = Problem(one["time"], one["values"], one["noise"], one["t_stop"],
+                          offset_free=free_offsets(one["channels"], state.shared_frame))
         return replace(state, recording=recording, nominal_run=one["nominal_run"], nominal_sim=one["nominal_sim"],
                        plain_problem=problem, nominal_ctx=ctx, problem=problem, ctx=ctx)
     trials = []
@@ -169,7 +171,7 @@ def _stacked(state, trials):
                trials=tuple({"name": name, "time": t["time"], "channels": t["channels"], "rows": t["time"].size,
                              "duration": t["ctx"]["duration"], "columns": cols}
                             for name, t, cols in zip(names, trials, columns)))
-    problem = Problem(time, values, noise, t_stops)
+    problem = Problem(time, values, noise, t_stops, offset_free=free_offsets(channels, state.shared_frame))
     return replace(state, recording=recording, nominal_run=first["nominal_run"], nominal_sim=nominal_sim,
                    plain_problem=problem, nominal_ctx=ctx, problem=problem, ctx=ctx)
 
@@ -221,7 +223,10 @@ def _aligned_trial(state, measured, maneuver, rate=None):
     sigma = np.array([noise_level(values[:, j], channel_kind(c), scale) for j, c in enumerate(channels)])
     nominal_sim = np.column_stack([np.interp(time, nominal_run.time, np.asarray(nominal_table[c], float))
                                    for c in channels])
-    moving = moving_channels(channels, nominal_sim, sigma)
+    # In a shared frame a still position is compared too: its level is the rig's geometry (no offset takes it).
+    pinned = ~free_offsets(channels, state.shared_frame)
+    moved = set(moving_channels(channels, nominal_sim, sigma))
+    moving = [c for c, kept in zip(channels, pinned) if kept or c in moved]
     if len(moving) < len(channels):
         # C order, as column_stack gives: a strided copy sums in another order (last-bit differences).
         cols = [channels.index(c) for c in moving]

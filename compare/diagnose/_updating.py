@@ -305,14 +305,20 @@ def _level_name(discretization):
 
 
 def _design(problem, sim, sensitivities):
-    """Weighted design matrix: the sensitivities' columns, one offset per channel, the clock shift."""
+    """Weighted design matrix: the sensitivities' columns, one offset per channel, the clock shift.
+
+    A channel without a free offset (``Problem.offset_free``) keeps its
+    column, all zeros: its offset stays at its prior's mean, 0, and the
+    nuisance vector's layout is the same for every recording.
+    """
     sw = np.sqrt(problem.W)
     n, c = sim.shape
     rate = np.gradient(sim, problem.dt, axis=0)
     cols = [np.where(problem.valid, s, 0.0) * sw for s in sensitivities]
     for j in range(c):
         e = np.zeros((n, c))
-        e[:, j] = sw[:, j]
+        if problem.offset_free[j]:
+            e[:, j] = sw[:, j]
         cols.append(e)
     cols.append(np.where(problem.valid, rate, 0.0) * sw)
     return np.stack([col.ravel() for col in cols], axis=1)
@@ -1058,10 +1064,11 @@ def nuisance_correlation(problem, signature, update, most=3, tolerances=None):
 
 
 def _centred(problem, x):
-    """``x`` (n, c) in the chi2 metric with each channel's weighted mean (its offset) removed."""
+    """``x`` (n, c) in the chi2 metric with each channel's weighted mean (its offset) removed, where the
+    channel has a free offset."""
     W = problem.W
     x = np.where(problem.valid, x, 0.0)
-    return (x - (W * x).sum(0) / np.maximum(W.sum(0), 1e-300)) * np.sqrt(W)
+    return (x - problem.offset_free * (W * x).sum(0) / np.maximum(W.sum(0), 1e-300)) * np.sqrt(W)
 
 
 def parameter_span_share(problem, signature, update):
