@@ -41,7 +41,7 @@ def test_what_the_rig_cannot_absorb_is_a_ridge_regressions_residual():
     # min |g - x c|^2 + lam x^2 leaves |o|^2 + a^2 |c|^2 lam / (|c|^2 + lam).
     rng = np.random.default_rng(0)
     n = 400
-    problem = SimpleNamespace(W=np.ones((n, 1)), valid=np.ones((n, 1), bool))
+    problem = SimpleNamespace(W=np.ones((n, 1)), valid=np.ones((n, 1), bool), offset_free=np.ones(1, bool))
     c = rng.normal(size=(n, 1))
     c -= c.mean()
     o = rng.normal(size=(n, 1))
@@ -58,6 +58,9 @@ def test_what_the_rig_cannot_absorb_is_a_ridge_regressions_residual():
     assert bounded == pytest.approx(oo + (a - 0.5) ** 2 * cc, rel=1e-8)
     # each channel's offset is free: a constant weighs nothing
     assert unabsorbed_chi2(problem, np.full((n, 1), 3.0), [], None, None) == pytest.approx(0.0, abs=1e-20)
+    # in a shared frame the offset is not free: the constant weighs its whole square
+    problem.offset_free = np.zeros(1, bool)
+    assert unabsorbed_chi2(problem, np.full((n, 1), 3.0), [], None, None) == pytest.approx(9.0 * n, rel=1e-12)
 
 
 def test_clopper_pearson_upper_bound_is_the_binomial_tail_and_matches_the_issues_examples():
