@@ -47,6 +47,9 @@ MAX_ROWS = 10_000_000
 # A bag of poses this small decodes in megabytes; a MemoryError reading it is a damaged length field.
 MAX_HONEST_BAG_BYTES = 256 * 2**20
 
+# Tait-Bryan sequences, as scipy's ``Rotation.from_euler`` reads them: lowercase extrinsic, uppercase intrinsic.
+_EULER_SEQUENCES = ("xyz", "xzy", "yxz", "yzx", "zxy", "zyx", "XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX")
+
 _Column = Union[Annotated[str, Field(min_length=1)], Annotated[int, Field(ge=0, le=100_000)]]
 
 
@@ -61,6 +64,9 @@ class TrackedBody(_Strict):
                                               description="x, y, z columns (names or numbers), in a table")
     quaternion: Optional[list[_Column]] = Field(None, min_length=4, max_length=4,
                                                 description="attitude columns, in the table's `quaternion` order")
+    euler: Optional[list[_Column]] = Field(None, min_length=3, max_length=3,
+                                           description="attitude as three angle columns, in the order of the "
+                                                       "table's `euler` sequence, in its `angle_unit`")
     topic: Optional[Annotated[str, Field(min_length=1)]] = Field(
         None, description="in a ROS 2 bag: its PoseStamped or TransformStamped topic (position and attitude)")
 
@@ -68,8 +74,10 @@ class TrackedBody(_Strict):
     def _source(self):
         if (self.position is None) == (self.topic is None):
             raise ValueError("give a tracked pose's source once: `position` columns (a table) or a `topic` (a bag)")
-        if self.topic is not None and self.quaternion is not None:
-            raise ValueError("a topic carries its own attitude: no `quaternion` columns with a `topic`")
+        if self.topic is not None and (self.quaternion is not None or self.euler is not None):
+            raise ValueError("a topic carries its own attitude: no `quaternion` or `euler` columns with a `topic`")
+        if self.quaternion is not None and self.euler is not None:
+            raise ValueError("give a body's attitude once: `quaternion` or `euler` columns, not both")
         return self
 
 
@@ -101,6 +109,11 @@ class TrackedTable(_Strict):
     units: Literal["m", "cm", "mm"] = Field("m", description="unit of every position")
     up: Literal["+x", "-x", "+y", "-y", "+z", "-z"] = Field("+z", description="the recording's axis that points up")
     quaternion: Literal["xyzw", "wxyz"] = Field("xyzw", description="the order of every quaternion's columns")
+    euler: Literal[_EULER_SEQUENCES] = Field(
+        "xyz", description="the rotations a body's `euler` angles make, in column order: lowercase about the "
+                           "recording's fixed axes (ROS's roll, pitch, yaw is xyz), uppercase about the body's own "
+                           "turned axes (ZYX: yaw, pitch, roll)")
+    angle_unit: Literal["rad", "deg"] = Field("rad", description="unit of every `euler` angle")
     stamp: Literal["header", "log"] = Field("header", description="in a bag: each message's header stamp, or the "
                                                                  "time the recorder logged it")
     shared_frame: bool = Field(False, description="the bodies and the points are tracked in one frame by one system: "
@@ -198,6 +211,7 @@ def _columns(frame, mapping, path, mapping_name):
             raise ValueError(f"{mapping_name}: a table's mapping gives `position` columns; `topic` is for a ROS 2 "
                              f"bag (reading {path})")
         wanted += list(entry.position) + list(getattr(entry, "quaternion", None) or ())
+        wanted += list(getattr(entry, "euler", None) or ())
     out = {}
     for key in wanted:
         if isinstance(key, int):
@@ -265,10 +279,12 @@ def read_tracked_table(path, mapping):
         t = columns[mapping.table.time] * _TIME_UNITS[mapping.table.time_unit]
 
     def track(entry):
-        quaternion = getattr(entry, "quaternion", None)
+        quaternion, euler = getattr(entry, "quaternion", None), getattr(entry, "euler", None)
         q = None if quaternion is None else np.column_stack([columns[k] for k in quaternion])
         if q is not None and mapping.table.quaternion == "wxyz":
             q = q[:, [1, 2, 3, 0]]
+        if euler is not None:
+            q = _euler_quaternions(np.column_stack([columns[k] for k in euler]), mapping.table)
         return t, np.column_stack([columns[k] for k in entry.position]), q
 
     tracks = {**{("body", n): track(b) for n, b in mapping.bodies.items()},
@@ -415,6 +431,17 @@ def _resampled(path, mapping, tracks, rows):
               "shared_frame": mapping.table.shared_frame}
     return TrackedPoses(time=time - start, positions=out["body"], rotations=out["rotation"], points=out["point"],
                         report=report)
+
+
+def _euler_quaternions(angles, table):
+    """Quaternions (x, y, z, w) of rows of three angles in ``table.euler``'s sequence; NaN where an angle is."""
+    from scipy.spatial.transform import Rotation
+
+    q = np.full((angles.shape[0], 4), np.nan)
+    whole = np.isfinite(angles).all(axis=1)
+    if whole.any():
+        q[whole] = Rotation.from_euler(table.euler, angles[whole], degrees=table.angle_unit == "deg").as_quat()
+    return q
 
 
 def _resample_quaternions(q, resample):

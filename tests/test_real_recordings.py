@@ -231,3 +231,22 @@ def test_the_three_drone_excerpts_hold_the_columns_their_sources_name(name):
     # attitude in radians, the yaw swinging about the vertical by tenths of a radian
     yaw = frame["box.yaw"].to_numpy()
     assert 0.3 < yaw.max() - yaw.min() < 1.0 and np.all(np.abs(frame[["box.roll", "box.pitch"]].to_numpy()) < 0.3)
+
+
+def test_a_three_drone_excerpt_reads_through_its_mapping_with_the_boxs_angles():
+    """Roll, pitch and yaw through the mapping: in the tool's frame (K down, so y and z flip) the box's heading
+    is minus the file's yaw; the drones are the rig's moving points, above the box by the cables."""
+    import pandas as pd
+
+    name = "2025_07_30_14_36_05_hold.csv"
+    path = REPO / "tests" / "data" / "hmer101" / name
+    poses = read_tracked_table(path, REPO / "benchmarks" / "real" / "hmer101_mapping.toml")
+    # 70 rows 0.099-0.101 s apart, 6.9 s in all, resampled onto the median step
+    assert poses.report["samples"] in (69, 70) and poses.report["rate_hz"] == pytest.approx(10.0, rel=0.01)
+    assert sorted(poses.points) == ["drone1", "drone2", "drone3"] and poses.report["shared_frame"]
+    M = poses.rotations["box"]
+    frame = pd.read_csv(path)
+    yaw = np.interp(poses.time + poses.report["start_time_s"], frame["time"], frame["box.yaw"])
+    np.testing.assert_allclose(np.arctan2(M[:, 1, 0], M[:, 0, 0]), -yaw, atol=1e-3)
+    for drone in poses.points.values():
+        assert np.all(poses.positions["box"][:, 2] - drone[:, 2] > 2.2)

@@ -89,11 +89,40 @@ def test_dropped_rows_shuffled_rows_and_a_gap_are_resampled_and_said(tmp_path, s
     np.testing.assert_allclose(table["ball.x"][kept], swing.table["ball.x"][kept], atol=2e-4)  # row 10: interpolated
 
 
+def _roll_pitch_yaw(M):
+    """Roll, pitch, yaw (rad) of rotation matrices M (n, 3, 3) = Rz(yaw) Ry(pitch) Rx(roll), by hand."""
+    return (np.arctan2(M[:, 2, 1], M[:, 2, 2]), -np.arcsin(np.clip(M[:, 2, 0], -1.0, 1.0)),
+            np.arctan2(M[:, 1, 0], M[:, 0, 0]))
+
+
+@pytest.mark.parametrize("sequence, order", [("xyz", (0, 1, 2)), ("ZYX", (2, 1, 0))])
+def test_a_body_tracked_by_angles_reads_back_as_the_simulation(tmp_path, swing, sequence, order):
+    """A tracker that writes roll, pitch and yaw in degrees: about its fixed axes x, then y, then z (ROS's
+    convention) or, the same rotation, yaw, pitch, roll about the body's turned axes (ZYX)."""
+    foreign = _foreign(swing.table)
+    R = frame_rotation("+y")
+    T = body_to_inertial(*(swing.table[f"ball.{a}"].to_numpy() for a in ("roll", "pitch", "yaw")))
+    angles = np.degrees(np.column_stack(_roll_pitch_yaw(R.T @ T @ R)))
+    names = ["Ball A1", "Ball A2", "Ball A3"]
+    for name, k in zip(names, order):
+        foreign[name] = angles[:, k]
+    csv, mapping = tmp_path / "take.csv", tmp_path / "take.toml"
+    foreign.drop(columns=["Ball QW", "Ball QX", "Ball QY", "Ball QZ"]).to_csv(csv, index=False, float_format="%.12g")
+    mapping.write_text(MAPPING.replace('quaternion = ["Ball QW", "Ball QX", "Ball QY", "Ball QZ"]',
+                                       f"euler = {names}".replace("'", '"'))
+                       .replace('quaternion = "wxyz"', f'euler = "{sequence}"\nangle_unit = "deg"'))
+    table, _ = tracked_trajectory(read_tracked_table(csv, mapping), load_rig("pendulum"))
+    for channel in ("ball.roll", "ball.pitch", "ball.yaw"):
+        np.testing.assert_allclose(table[channel], swing.table[channel], atol=1e-9, err_msg=channel)
+
+
 @pytest.mark.parametrize("edit, words", [
     (('"Ball QW", "Ball QX"', '"Ball QW", "Ball Q"'), ["no column 'Ball Q'", "Time (ms)"]),
     (('up = "+y"', 'up = "north"'), ["table.up", "'north'"]),
     (('time = "Time (ms)"', 'rate_hz = 100.0\ntime = "Time (ms)"'), ["clock once"]),
     (('up = "+y"', 'up = "+y"\nshared_frame = true'), ["shared_frame", "tracks no point"]),
+    (('"Ball QZ"]', '"Ball QZ"]\neuler = ["Ball X", "Ball Y", "Ball Z"]'), ["attitude once"]),
+    (('up = "+y"', 'up = "+y"\neuler = "xyx"'), ["table.euler", "'xyx'"]),
 ])
 def test_a_mapping_that_names_what_the_table_lacks_is_refused_in_one_line(tmp_path, swing, edit, words):
     csv, mapping = tmp_path / "take.csv", tmp_path / "take.toml"
