@@ -250,3 +250,25 @@ def test_a_three_drone_excerpt_reads_through_its_mapping_with_the_boxs_angles():
     np.testing.assert_allclose(np.arctan2(M[:, 1, 0], M[:, 0, 0]), -yaw, atol=1e-3)
     for drone in poses.points.values():
         assert np.all(poses.positions["box"][:, 2] - drone[:, 2] > 2.2)
+
+
+@pytest.mark.parametrize("name", ["2025_07_30_14_36_05_hold.csv", "2025_07_30_20_44_05_hold.csv"])
+def test_read_as_roll_pitch_yaw_the_three_drone_boxs_cables_keep_their_lengths(name, tmp_path):
+    """Taut cables keep their length: from each drone to a lid point 0.1 m out towards it (the authors'
+    simulated attachment), the distance holds to 3 mm while the box yaws by 0.6 rad - if the angles are read
+    as ROS's roll, pitch and yaw. Read in the wrong roles (the first column as a turn about z), it does not."""
+    mapping = (REPO / "benchmarks" / "real" / "hmer101_mapping.toml").read_text()
+    spreads = {}
+    for sequence in ("xyz", "zyx"):
+        path = tmp_path / f"{sequence}.toml"
+        path.write_text(mapping.replace('euler = "xyz"', f'euler = "{sequence}"'))
+        poses = read_tracked_table(REPO / "tests" / "data" / "hmer101" / name, path)
+        flip = np.diag([1.0, -1.0, -1.0])  # the recording's z-up frame to the tool's K-down one
+        box, turn = poses.positions["box"], poses.rotations["box"]
+        spreads[sequence] = []
+        for i, bearing in enumerate((0.0, 120.0, 240.0)):
+            lid = flip @ [0.1 * np.cos(np.radians(bearing)), 0.1 * np.sin(np.radians(bearing)), 0.03]
+            length = np.linalg.norm(poses.points[f"drone{i + 1}"] - box - turn @ lid, axis=1)
+            assert 2.40 < np.median(length) < 2.53  # the 2.421 m cable and the drone's end of it
+            spreads[sequence].append(np.std(length))
+    assert max(spreads["xyz"]) < 0.003 and max(spreads["zyx"]) > 0.008, spreads
