@@ -155,7 +155,7 @@ class TrackedPoses:
     positions : dict
         Body name -> (n, 3) reference-point positions (m); NaN where not tracked.
     rotations : dict
-        Body name -> (n, 3, 3) body-to-inertial matrices (bodies with a quaternion only).
+        Body name -> (n, 3, 3) body-to-inertial matrices (bodies with a tracked attitude only).
     points : dict
         Point name -> (n, 3) positions (m).
     report : dict
