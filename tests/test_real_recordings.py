@@ -272,3 +272,15 @@ def test_read_as_roll_pitch_yaw_the_three_drone_boxs_cables_keep_their_lengths(n
             assert 2.40 < np.median(length) < 2.53  # the 2.421 m cable and the drone's end of it
             spreads[sequence].append(np.std(length))
     assert max(spreads["xyz"]) < 0.003 and max(spreads["zyx"]) > 0.008, spreads
+
+
+def test_the_three_drone_rig_hangs_its_box_where_the_cables_geometry_puts_it():
+    """Under the three drones' commanded places (1 m out, 2.796 m up) the box hangs with its lid points (0.1 m
+    out, 0.03 m above the centre) sqrt(2.421^2 - 0.9^2) below them, the cables stretched by their share of the
+    weight (m g / (3 cos a) over EA, under a millimetre), level and centred."""
+    rig = load_rig(REPO / "benchmarks" / "real" / "hmer101.toml")
+    table = simulate(rig, duration=0.05, rate_hz=100.0, discretization="low").table
+    drop = np.sqrt(2.421**2 - 0.9**2)
+    stretch = 1.6868 * 9.81 / (3 * drop / 2.421) / 2.0e4 * 2.421 * 2.421 / drop
+    assert -table["box.z"].iloc[0] == pytest.approx(2.796 - drop - stretch - 0.03, abs=5e-4)
+    assert np.allclose(table[["box.x", "box.y", "box.roll", "box.pitch"]].iloc[0], 0.0, atol=1e-4)
