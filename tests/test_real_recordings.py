@@ -11,12 +11,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from dragline.capture import read_tracked_table, recover_clock
+from dragline.capture import frame_rotation, read_tracked_table, recover_clock
 from dragline.reconstruct import tracked_trajectory
 from dragline.simulate import apply_parameters, default_maneuver, load_rig, simulate
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "tests" / "data" / "stormlord"
+HMER101 = REPO / "tests" / "data" / "hmer101"
 RIG = REPO / "benchmarks" / "real" / "stormlord.toml"
 MAPPING = REPO / "benchmarks" / "real" / "stormlord_mapping.toml"
 FRAME = 1.0 / 30.0
@@ -213,7 +214,7 @@ def test_the_three_drone_excerpts_hold_the_columns_their_sources_name(name):
     (under 0.25 m) from the box's centre, the box 2.2-2.5 m below them, rows 0.1 s apart."""
     import pandas as pd
 
-    frame = pd.read_csv(REPO / "tests" / "data" / "hmer101" / name)
+    frame = pd.read_csv(HMER101 / name)
     assert len(frame) == 70 and np.allclose(np.diff(frame["time"]), 0.1, atol=0.002)
     box = frame[["box.x", "box.y", "box.z"]].to_numpy()
     bearings = []
@@ -239,7 +240,7 @@ def test_a_three_drone_excerpt_reads_through_its_mapping_with_the_boxs_angles():
     import pandas as pd
 
     name = "2025_07_30_14_36_05_hold.csv"
-    path = REPO / "tests" / "data" / "hmer101" / name
+    path = HMER101 / name
     poses = read_tracked_table(path, REPO / "benchmarks" / "real" / "hmer101_mapping.toml")
     # 70 rows 0.099-0.101 s apart, 6.9 s in all, resampled onto the median step
     assert poses.report["samples"] in (69, 70) and poses.report["rate_hz"] == pytest.approx(10.0, rel=0.01)
@@ -262,8 +263,8 @@ def test_read_as_roll_pitch_yaw_the_three_drone_boxs_cables_keep_their_lengths(n
     for sequence in ("xyz", "zyx"):
         path = tmp_path / f"{sequence}.toml"
         path.write_text(mapping.replace('euler = "xyz"', f'euler = "{sequence}"'))
-        poses = read_tracked_table(REPO / "tests" / "data" / "hmer101" / name, path)
-        flip = np.diag([1.0, -1.0, -1.0])  # the recording's z-up frame to the tool's K-down one
+        poses = read_tracked_table(HMER101 / name, path)
+        flip = frame_rotation("+z")  # the recording's z-up frame to the tool's K-down one
         box, turn = poses.positions["box"], poses.rotations["box"]
         spreads[sequence] = []
         for i, bearing in enumerate((0.0, 120.0, 240.0)):

@@ -78,7 +78,7 @@ def fits(tmp_path_factory):
     mapping with the load's offsets free and through one that says the frame is shared."""
     from dragline.compare.diagnose import diagnose_path
 
-    folder = tmp_path_factory.mktemp("shared")
+    folder = tmp_path_factory.mktemp("frames")
     truth_doc = tomllib.loads(_rig_text())
     truth_doc["ropes"]["line"]["length"] = TRUE_LENGTH
     truth = rig_from_dict(truth_doc)
