@@ -49,6 +49,10 @@ def add_parser(sub):
     p.add_argument("--mapping", metavar="MAPPING.toml",
                    help="read INPUT as a table of tracked poses (a tracker's CSV export) mapped onto the rig's "
                         "bodies and points by this file (docs/schemas.md)")
+    p.add_argument("--start", choices=("rig", "recording"), default="rig",
+                   help="where each trial starts: the rig's own start (its statics, or its release; the default), "
+                        "or where the recording's first samples have the tracked bodies, moving as they move "
+                        "there (a recording cut from the middle of a motion)")
     p.add_argument("--discretization", default="baseline", metavar="LEVEL|ROPE=N,...",
                    help="discretization of every simulation (default baseline)")
     p.add_argument("--candidates", metavar="NAME,...",
@@ -92,7 +96,8 @@ def run(args):
     result = diagnose_path(args.input if len(args.input) > 1 else args.input[0], maneuver=args.maneuver, rig=rig,
                            calibration=args.calibration, discretization=discretization, candidates=names,
                            workers=executor_from_args(args), seed=args.seed, progress=say, between=between,
-                           mapping=args.mapping, held_out=args.predict, leave_one_out=args.leave_one_out)
+                           mapping=args.mapping, held_out=args.predict, leave_one_out=args.leave_one_out,
+                           start_from_recording=args.start == "recording")
     write_diagnosis_json(args.json, result.doc)
     if args.report:
         write_diagnosis_report(args.report, result)

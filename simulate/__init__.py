@@ -24,7 +24,7 @@ from ._markers import body_marker_positions, marker_names, marker_positions
 from ._maneuver import Maneuver, default_maneuver, maneuver_from_table, read_maneuver_csv, write_maneuver_csv
 from ._dig import dig_maneuver
 from ._model import Model, assemble
-from ._modes import Modes, linear_modes
+from ._modes import Modes, body_frequencies, linear_modes
 from ._physics import (
     MECHANISMS,
     Mechanism,
@@ -35,6 +35,7 @@ from ._physics import (
     mechanism_type,
     parse_physics,
 )
+from ._release import POSE_COORDINATES, unresolved_coordinates
 from ._rig import BUILT_IN_RIGS, DISCRETIZATION_LEVELS, Rig, load_rig, rig_from_dict
 from ._simulate import SimulationError, SimulationResult, simulate
 from ._sensitivity import Sensitivities, TangentUnavailable, simulate_sensitivities

@@ -36,12 +36,19 @@ class Maneuver:
         Point name -> its position (m), shape (K, 3).
     source : str
         The file it was read from ("" when built in code): errors name it.
+    start : dict, optional
+        The trial's own start, as a rig's ``release`` (body -> ``position``,
+        ``angles``, ``velocity``, ``rates``, and ``settled``: the pose
+        coordinates the ropes settle instead of the hold, ``release_start``):
+        a recording that begins mid-motion (``estimate_start``). It replaces
+        the rig's release; None: the rig's own start.
     """
 
     time: np.ndarray
     lengths: dict = field(default_factory=dict)
     points: dict = field(default_factory=dict)
     source: str = field(default="", compare=False)
+    start: dict | None = field(default=None, compare=False)
 
     def described(self):
         """How an error names it: ``maneuver file PATH``, or ``the maneuver``."""

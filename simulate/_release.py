@@ -7,7 +7,10 @@ import numpy as np
 from ._kernel import KIND_FIXED, KIND_PARTICLE
 from ._kinematics import body_to_inertial
 
-__all__ = ["let_go"]
+__all__ = ["let_go", "POSE_COORDINATES", "unresolved_coordinates"]
+
+# A body's pose coordinates as a release's ``settled`` names them: its mass centre and Eq. 11's angles.
+POSE_COORDINATES = ("x", "y", "z", "roll", "pitch", "yaw")
 
 # A fixed point's velocity at the start: its track differenced over this (s).
 _TRACK_STEP_S = 1e-4
@@ -58,3 +61,26 @@ def let_go(model, state, t, release):
             o = model.o_vel + 3 * idx
             y[o: o + 3] = (1.0 - share) * ends[a] + share * ends[b]
     return y
+
+
+def unresolved_coordinates(model, state, t, rate_hz):
+    """Per body, the pose coordinates a recording at ``rate_hz`` cannot set a start in: body -> tuple of names.
+
+    A body's modes (``body_frequencies``: its ropes following statically)
+    above the recording's Nyquist frequency (``rate_hz`` / 2) are not
+    resolved by it: a start read from the recording leaves them at rest,
+    settled by the ropes. As many coordinates are settled as the body has
+    such modes, those the ropes hold most stiffly alone: a box on three
+    splayed cables filmed at 10 Hz has three (15-22 Hz, its height and
+    tilts on the cables' stretch) and keeps its sway and turn (0.6-0.9 Hz)
+    where the recording has them.
+    """
+    from ._modes import body_frequencies
+
+    modes, alone = body_frequencies(model, state, t)
+    out = {}
+    for b, name in enumerate(model.body_names):
+        fast = int(np.sum(modes[b] > 0.5 * rate_hz))
+        stiffest = np.argsort(-alone[b], kind="stable")[:fast]
+        out[name] = tuple(POSE_COORDINATES[k] for k in sorted(stiffest))
+    return out

@@ -168,30 +168,33 @@ def simulate_sensitivities(build, coords, steps, *, discretization="baseline", d
     Raises
     ------
     TangentUnavailable
-        A release that sets bodies moving.
+        A release (the rig's, or the maneuver's ``start``) that sets bodies
+        moving or settles some of their coordinates.
     """
     coords = np.asarray(coords, float)
     h = ASSEMBLY_STEP * np.asarray(steps, float)
     rig, maneuver, physics = build(coords)
-    if any(np.any(p.get("velocity", 0)) or np.any(p.get("rates", 0)) for p in (rig.release or {}).values()):
-        raise TangentUnavailable("a release that sets bodies moving has no tangent yet")
+    release = maneuver.start or rig.release or {}
+    if any(np.any(p.get("velocity", 0)) or np.any(p.get("rates", 0)) or p.get("settled") for p in release.values()):
+        raise TangentUnavailable("a release that sets bodies moving or settles some of their coordinates has no "
+                                 "tangent yet")
     result = simulate(rig, maneuver, discretization, physics, duration=duration, rate_hz=rate_hz, dt=dt,
                       statics_guess=statics_guess)
     model = result.model
     m = model.kernel_tuple()
     plus, minus, dheld = [], [], np.zeros((model.n_state, len(coords)))
-    held_names = tuple(rig.release or ())
+    held_names = tuple(release)
     for j in range(len(coords)):
         pair = []
         for sign in (1.0, -1.0):
             x = coords.copy()
             x[j] += sign * h[j]
             r, mv, ph = build(x)
-            pair.append((r, assemble(r, mv, discretization, physics=ph)))
+            pair.append((r, assemble(r, mv, discretization, physics=ph), mv.start or r.release))
         plus.append(pair[0][1])
         minus.append(pair[1][1])
         if held_names:
-            hp, hm = _held_pose(pair[0][0], pair[0][0].release), _held_pose(pair[1][0], pair[1][0].release)
+            hp, hm = _held_pose(pair[0][0], pair[0][2]), _held_pose(pair[1][0], pair[1][2])
             for name in held_names:
                 b = model.body_names.index(name)
                 dheld[12 * b: 12 * b + 3, j] = (hp[name][0] - hm[name][0]) / (2.0 * h[j])

@@ -12,7 +12,7 @@ from . import _kernel
 from ._kinematics import PAPER_SEQUENCE, angles_from_matrix, body_to_inertial, euler_from_matrix, matrix_from_angles
 from ._maneuver import default_maneuver
 from ._model import assemble
-from ._release import let_go
+from ._release import POSE_COORDINATES, let_go
 from ._rig import load_rig
 from ._statics import solve_statics
 from ._time_step import start_time_step
@@ -280,6 +280,33 @@ def _check_strain(model, state, t, how):
                              "far from the machine's?)")
 
 
+def _about_rest(model, rest, release):
+    """``release`` with each pose given ``about_rest`` (a displacement from the rest pose ``rest``) made absolute.
+
+    Its settled coordinates are held at rest's values until the ropes
+    settle them: the coordinates a start displaces are soft, restored by
+    gravity (a sway, a turn), so moving along them from rest lifts the body
+    and the ropes, held at rest's height and tilt, are taut - where the
+    settling's Newton steps are smooth (from a slack rope they are not).
+    """
+    out = {}
+    for name, pose in release.items():
+        if pose.get("about_rest"):
+            b = model.body_names.index(name)
+            sequence = model.rig.bodies[name].euler_sequence
+            at_rest = rest[12 * b: 12 * b + 9].copy()
+            angles = np.array(angles_from_matrix(body_to_inertial(*at_rest[6:]), sequence))
+            turned = matrix_from_angles(*(angles + np.asarray(pose.get("angles", np.zeros(3)), float)), sequence)
+            held = np.r_[at_rest[:3] + np.asarray(pose["position"], float), euler_from_matrix(turned)]
+            for k, c in enumerate(POSE_COORDINATES):
+                if c in pose.get("settled", ()):
+                    held[k] = at_rest[k if k < 3 else k + 3]
+            pose = dict(pose, about_rest=False, position=held[:3],
+                        angles=np.array(angles_from_matrix(body_to_inertial(*held[3:]), sequence)))
+        out[name] = pose
+    return out
+
+
 def _held_pose(rig, release):
     """``release`` (body -> position, angles) as ``solve_statics``'s ``held``; ValueError naming an unknown body."""
     held = {}
@@ -293,7 +320,12 @@ def _held_pose(rig, release):
             raise ValueError(f"the release of {name!r} needs a finite position (3) and angles (3)")
         # given in the body's output sequence; the state's are Eq. 11's
         turn = matrix_from_angles(*angles, rig.bodies[name].euler_sequence)
-        held[name] = (position, np.array(euler_from_matrix(turn)))
+        settled = pose.get("settled", ())
+        if any(c not in POSE_COORDINATES for c in settled):
+            raise ValueError(f"the release of {name!r} settles {list(settled)}; a body's pose coordinates are "
+                             f"{', '.join(POSE_COORDINATES)}")
+        held[name] = (position, np.array(euler_from_matrix(turn)),
+                      tuple(POSE_COORDINATES.index(c) for c in settled))
     return held
 
 
@@ -345,10 +377,14 @@ def simulate(
         almost at once and Newton polishes.
     release : dict, optional
         Body name -> ``{"position": (3,) m, "angles": (3,) rad}`` (angles
-        default level): the trial starts from a release, those bodies held
-        there at rest, the ropes (and any body not named) settled under
-        them, then let go. By default the rig's own ``release``, else the
-        static equilibrium.
+        default level; ``velocity`` m/s and ``rates`` rad/s body axes to
+        let go of it moving; ``settled``: pose coordinates of
+        ``POSE_COORDINATES`` the ropes settle from there instead of the
+        hold; ``about_rest``: position and angles are a displacement from
+        the rig's rest pose at the start): the trial starts from a release, those bodies held there at
+        rest, the ropes (and any body not named) settled under them, then
+        let go. By default the maneuver's ``start``, else the rig's own
+        ``release``, else the static equilibrium.
     integrator : {"verlet", "rk4"}
         Kick-drift-kick velocity Verlet (``_verlet``: one right-hand side a
         step, about twice as fast at the baseline) or classical RK4, the
@@ -391,7 +427,9 @@ def simulate(
         guess = None
         if statics_guess is not None and np.shape(statics_guess) == (nominal.n_state,):
             guess = statics_guess
-        release = rig.release if release is None else release
+        release = (maneuver.start or rig.release) if release is None else release
+        if release and any(pose.get("about_rest") for pose in release.values()):
+            release = _about_rest(nominal, solve_statics(nominal, t0, y0=guess).state, release)
         held = None if not release else _held_pose(rig, release)
         eq = solve_statics(nominal, t0, y0=guess if held is None else None, held=held)
         y0, residual = eq.state, eq.residual

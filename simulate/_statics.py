@@ -95,7 +95,7 @@ def initial_state(model, t=0.0, held=None):
     for b, name in enumerate(model.body_names):
         y[12 * b : 12 * b + 3] = pos[name]
         if held and name in held:
-            y[12 * b : 12 * b + 3], y[12 * b + 6 : 12 * b + 9] = held[name]
+            y[12 * b : 12 * b + 3], y[12 * b + 6 : 12 * b + 9] = held[name][:2]
     Lseg = model.segment_lengths(t)
     for s, name in enumerate(model.seg_names):
         nodes = model.seg_nodes[name]
@@ -121,11 +121,21 @@ def initial_state(model, t=0.0, held=None):
     return y
 
 
-def _unknown_index(model, held=()):
+# A body's pose coordinates in the state (x, y, z, Eq. 11's three angles), and the rows of their accelerations.
+_POSE = (0, 1, 2, 6, 7, 8)
+_POSE_ACCEL = (3, 4, 5, 9, 10, 11)
+
+
+def _free(model, held, settled):
+    """Per body, which of its six pose coordinates (0-5, ``_POSE``'s order) the statics solve for."""
+    settled = settled or {}
+    return [range(6) if b not in held else tuple(settled.get(b, ())) for b in range(model.n_bodies)]
+
+
+def _unknown_index(model, held=(), settled=None):
     idx = []
-    for b in range(model.n_bodies):
-        if b not in held:
-            idx += [12 * b + k for k in (0, 1, 2, 6, 7, 8)]
+    for b, free in enumerate(_free(model, held, settled)):
+        idx += [12 * b + _POSE[k] for k in free]
     idx += list(range(model.o_part, model.o_vel))
     idx += [model.o_ring + 2 * r for r in range(model.n_rings)]
     return np.array(idx)
@@ -148,10 +158,13 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     tol : float
         Largest force (N) or moment (N m) imbalance accepted.
     held : dict, optional
-        Body name -> (mass-centre position (3,) m, Euler angles (3,) rad):
-        those bodies are held there and only the ropes (and the other
-        bodies) settle, as a lab holds a load before it lets it go (a
-        release). Their forces are not balanced.
+        Body name -> (mass-centre position (3,) m, Euler angles (3,) rad),
+        optionally a third item, the pose coordinates the ropes settle
+        (0-5: x, y, z and Eq. 11's angles): those bodies are held there
+        and only the ropes (and the other bodies, and a held body's settled
+        coordinates, from where the hold put them) settle, as a lab holds
+        a load before it lets it go (a release). Their forces are not
+        balanced but along their settled coordinates.
 
     Returns
     -------
@@ -166,6 +179,7 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     newton = kernel_model(arrays)
     work = _kernel.make_work(newton)
     held_index = tuple(model.body_names.index(name) for name in held) if held else ()
+    settled = {model.body_names.index(name): tuple(pose[2]) for name, pose in (held or {}).items() if len(pose) > 2}
     y = initial_state(model, t, held) if y0 is None else np.array(y0, float)
     relaxing = _fictitious_masses(model, arrays, y, t)
     relaxing["body_accel_scale"] = relaxing["body_accel_scale"].copy()
@@ -190,7 +204,8 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
     if y0 is not None:
         # A guess (the equilibrium of a rig a few percent different) is near
         # its own: Newton from it directly, relaxing only if that fails.
-        rest, worst = _polish(model, newton, work, y, tol, max_iter=DIRECT_NEWTON_ITERATIONS, held=held_index)
+        rest, worst = _polish(model, newton, work, y, tol, max_iter=DIRECT_NEWTON_ITERATIONS, held=held_index,
+                              settled=settled)
         if np.isfinite(worst) and worst <= tol:
             return Equilibrium(state=rest.copy(), residual=worst)
     for stage, speed in enumerate(NEWTON_FROM_SPEEDS):  # Newton from an early pose first; relax on if it fails
@@ -214,7 +229,7 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
             y = rec[-1].copy()
             chunks_left -= 1
             relaxed += 1
-        rest, worst = _polish(model, newton, work, y, tol, held=held_index)
+        rest, worst = _polish(model, newton, work, y, tol, held=held_index, settled=settled)
         if np.isfinite(worst) and worst <= tol:
             break
     if not np.isfinite(worst) or worst > tol:
@@ -268,18 +283,19 @@ def _fictitious_masses(model, arrays, y, t):
     return out
 
 
-def _polish(model, m, work, y, tol, max_iter=60, held=()):
+def _polish(model, m, work, y, tol, max_iter=60, held=(), settled=None):
     """Newton on the static balance from relaxed state ``y``: (rest state, largest imbalance left).
 
-    ``held``: indices of bodies held where they are (no unknowns, no balance).
+    ``held``: indices of bodies held where they are (no unknowns, no balance)
+    but for ``settled`` (body index -> pose coordinates 0-5 it balances).
     """
     y = np.array(y, float)
     for b in range(model.n_bodies):  # a body may have turned a full circle while settling
         if b not in held:
             y[12 * b + 6 : 12 * b + 9] = np.angle(np.exp(1j * y[12 * b + 6 : 12 * b + 9]))
-    unknown = _unknown_index(model, held)
-    rows = _accel_index(model, held)
-    scale = _residual_scale(model, held)
+    unknown = _unknown_index(model, held, settled)
+    rows = _accel_index(model, held, settled)
+    scale = _residual_scale(model, held, settled)
     rest = _at_rest(model, y)
     dy = np.zeros(model.n_state)
 
@@ -361,8 +377,8 @@ def _jacobian_pattern(model, unknown):
     def node_dofs(kind, idx):
         if kind == KIND_PARTICLE:
             return [col[model.o_part + 3 * idx + k] for k in range(3)]
-        if kind == _kernel.KIND_BODY and 12 * idx in col:  # a held body has no unknowns
-            return [col[12 * idx + k] for k in (0, 1, 2, 6, 7, 8)]
+        if kind == _kernel.KIND_BODY:  # a held body has no unknowns, a partly held one some
+            return [col[12 * idx + k] for k in _POSE if 12 * idx + k in col]
         return []
 
     seg_dofs = {}
@@ -411,23 +427,22 @@ def _colour_columns(pattern):
     return [np.flatnonzero(labels == g) for g in range(int(labels.max()) + 1 if labels.size else 0)]
 
 
-def _accel_index(model, held=()):
+def _accel_index(model, held=(), settled=None):
     idx = []
-    for b in range(model.n_bodies):
-        if b not in held:
-            idx += [12 * b + k for k in (3, 4, 5, 9, 10, 11)]
+    for b, free in enumerate(_free(model, held, settled)):
+        idx += [12 * b + _POSE_ACCEL[k] for k in free]
     idx += list(range(model.o_vel, model.o_force))
     idx += [model.o_ring + 2 * r + 1 for r in range(model.n_rings)]
     return np.array(idx)
 
 
-def _residual_scale(model, held=()):
+def _residual_scale(model, held=(), settled=None):
     """Accelerations -> forces (N) and moments (N m): multiply by the mass or inertia."""
     a = model.arrays
     scale = []
-    for b in range(model.n_bodies):
-        if b not in held:
-            scale += [a["body_mass"][b]] * 3 + list(np.diag(a["body_I"][b]))
+    for b, free in enumerate(_free(model, held, settled)):
+        per = [a["body_mass"][b]] * 3 + list(np.diag(a["body_I"][b]))
+        scale += [per[k] for k in free]
     L = model.segment_lengths(0.0)
     for p in range(model.n_particles):
         s = a["part_seg"][p]

@@ -205,7 +205,7 @@ def apply_parameters(rig, maneuver, parameters, coordinates):
             else:
                 lengths[t] = lengths[t] + value
     moved = dataclasses.replace(rig, bodies=bodies, ropes=ropes, fixed_points=fixed)
-    return _release_moved(rig, moved), Maneuver(maneuver.time, lengths, dict(maneuver.points))
+    return _release_moved(rig, moved), Maneuver(maneuver.time, lengths, dict(maneuver.points), start=maneuver.start)
 
 
 def draw_parameters(parameters, rng, spread=1.0, limit=2.0):

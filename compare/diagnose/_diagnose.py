@@ -92,7 +92,7 @@ class Diagnosis:
 
 def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candidates=None, workers=2,
              seed=0, source=None, progress=None, trial_names=None, held_out=(), leave_one_out=False,
-             shared_frame=False):
+             shared_frame=False, start_from_recording=False):
     """Diagnose a measured trajectory table against the nominal model.
 
     Parameters
@@ -134,6 +134,11 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
         driven in (a tracker's body beside the points it moves: the
         mapping's ``shared_frame``): no free constant offset on them, in the
         fit or in a held-out trial's prediction (``free_offsets``).
+    start_from_recording : bool
+        Each trial (a held-out one too) starts where its first samples have
+        the tracked bodies, moving as they move there (``_start``): a
+        recording cut from the middle of a motion. Else the maneuver's or
+        the rig's own start (its statics, or its release).
 
     Returns
     -------
@@ -174,14 +179,14 @@ def diagnose(measured, maneuver=None, rig=None, discretization="baseline", candi
     state = DiagnosisState(measured=measured, rig=rig, maneuver=maneuver, discretization=discretization,
                            candidate_names=candidates, workers=workers, seed=seed, source=source, note=progress,
                            started=_time.perf_counter(), trial_names=trial_names, held_out=held_out,
-                           shared_frame=bool(shared_frame))
+                           shared_frame=bool(shared_frame), start_from_recording=bool(start_from_recording))
     for step in STEPS:
         state = step(state)
     result = diagnosis_of(state)
     if leave_one_out:
         split = _leave_one_out(measured, maneuver, list(trial_names), progress=progress, rig=rig,
                                discretization=discretization, candidates=candidates, workers=workers, seed=seed,
-                               shared_frame=shared_frame)
+                               shared_frame=shared_frame, start_from_recording=start_from_recording)
         result.doc["leave_one_out"] = json_ready(split)
         result.doc["timing"]["seconds"] = _time.perf_counter() - state.started
     return result
@@ -286,7 +291,7 @@ def diagnosis_of(state):
         "source": state.source or {},
         "settings": {"discretization": discretization if isinstance(discretization, str) else dict(discretization),
                      "candidates": [c["name"] for c in state.candidates], "decay_weight": DECAY_WEIGHT,
-                     "shared_frame": state.shared_frame,
+                     "shared_frame": state.shared_frame, "start_from_recording": state.start_from_recording,
                      "block_s": BLOCK_S, "lowpass_s": LOWPASS_S * rec.scale.time, "rate_hz": rec.rate_hz,
                      "machine_scale": {"swing_hz": rec.scale.swing_hz, "length": rec.scale.length,
                                        "time": rec.scale.time},
@@ -308,7 +313,8 @@ def diagnosis_of(state):
 
 
 def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretization="baseline", candidates=None,
-                  workers=2, seed=0, progress=None, between=None, mapping=None, held_out=(), leave_one_out=False):
+                  workers=2, seed=0, progress=None, between=None, mapping=None, held_out=(), leave_one_out=False,
+                  start_from_recording=False):
     """:func:`load_recording` then :func:`diagnose`: what ``dragline diagnose`` runs.
 
     ``path`` may be a list: several trials of the machine, fitted together;
@@ -336,7 +342,7 @@ def diagnose_path(path, maneuver=None, rig=None, calibration=None, discretizatio
     try:
         result = diagnose(*args, rig, discretization, candidates, workers, seed, source, progress,
                           trial_names=names[:len(paths)] if len(paths) > 1 else None, held_out=spare,
-                          leave_one_out=leave_one_out,
+                          leave_one_out=leave_one_out, start_from_recording=start_from_recording,
                           shared_frame=any(src.get("tracked", {}).get("shared_frame", False)
                                            for _, _, src in loaded_all))
     except (StaticsError, SimulationError):

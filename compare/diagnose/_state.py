@@ -89,7 +89,9 @@ class DiagnosisState:
     ``workers`` (int or Executor), ``seed``, ``source``, ``note``
     (progress callable), ``started`` (perf_counter at the start) and
     ``shared_frame`` (the positions measured in the frame the rig is
-    driven in: no free offset on them, ``_recording.free_offsets``).
+    driven in: no free offset on them, ``_recording.free_offsets``) and
+    ``start_from_recording`` (each trial starts where its first samples have
+    the tracked bodies, ``_start``).
     """
 
     measured: pd.DataFrame
@@ -105,6 +107,7 @@ class DiagnosisState:
     trial_names: tuple | None = None
     held_out: tuple = ()
     shared_frame: bool = False
+    start_from_recording: bool = False
 
     # align_recording: the recording, the nominal run, the problem on the nominal rig; the held-out trials aligned
     held_aligned: list = field(default_factory=list)

@@ -62,6 +62,7 @@ from ._recording import (
 from ._predict import held_out_entry
 from ._scale import machine_scale
 from ._second_round import second_round
+from ._start import estimate_start
 from ._state import NullTest, Recording
 from ._trials import SEPARATOR, first_maneuver
 from ._sites import drop_law_twins, join_alike_sites, screen_sites
@@ -164,9 +165,10 @@ def _stacked(state, trials):
         scale=first["scale"],
         trials=[{"name": name, "channels": list(t["channels"]), "rows": int(t["time"].size),
                  "time_offset": t["offset"], "reels_stop": t["t_stop"], "reels_stop_method": t["stop_method"],
-                 "reels_stop_stacked": float(t["t_stop"] - t["time"][0] + time[0]), "ropes": t["alignment"]["ropes"]}
+                 "reels_stop_stacked": float(t["t_stop"] - t["time"][0] + time[0]), "ropes": t["alignment"]["ropes"],
+                 **({"start": t["alignment"]["start"]} if "start" in t["alignment"] else {})}
                 for name, t in zip(names, trials)])
-    ctx = dict(first["ctx"], maneuver=tuple(state.maneuver), channels=channels, time=time,
+    ctx = dict(first["ctx"], maneuver=tuple(t["ctx"]["maneuver"] for t in trials), channels=channels, time=time,
                initial_state=tuple(t["nominal_run"].states[0] for t in trials),
                trials=tuple({"name": name, "time": t["time"], "channels": t["channels"], "rows": t["time"].size,
                              "duration": t["ctx"]["duration"], "columns": cols}
@@ -210,6 +212,10 @@ def _aligned_trial(state, measured, maneuver, rate=None):
     time = t_al[keep]
     if time.size < 16:
         raise ValueError("the recording does not overlap the maneuver in time")
+    if state.start_from_recording:
+        maneuver, nominal_run, estimate = _started(state, measured, keep, time, maneuver, nominal_run, estimate,
+                                                        rate)
+        nominal_table = nominal_run.table
     if time[-1] - t_stop < MIN_DECAY_S:
         if rig.winches:
             raise ValueError(f"the recording ends {max(time[-1] - t_stop, 0.0):.2f} s after the maneuver stops; a "
@@ -255,6 +261,24 @@ def _resampled(measured, rate):
         if c != "time":
             out[c] = np.interp(new, t, np.asarray(measured[c], float), left=np.nan, right=np.nan)
     return measured.__class__(out)
+
+
+def _started(state, measured, keep, time, maneuver, nominal_run, estimate, rate):
+    """The trial started where its first samples have the tracked bodies (``_start``): the maneuver with its
+    ``start``, the nominal run from it, and the alignment's entry saying what the start was read from."""
+    t0 = float(maneuver.time[0])
+    if time[0] - t0 > 0.5 / rate:
+        raise ValueError(f"the recording starts {time[0] - t0:.3f} s after the maneuver; a start read from the "
+                         "recording needs its first sample at the maneuver's start")
+    columns = {c: np.asarray(measured[c], float)[keep] for c in measured.columns if c != "time"}
+    start, report = estimate_start(time, columns, nominal_run, rate)
+    if not start:
+        raise ValueError("a start read from the recording needs a tracked body (its x, y and z)")
+    _note(state, "the trial starts where its first samples have " + ", ".join(start))
+    maneuver = replace(maneuver, start=start)
+    run = simulate(state.rig, maneuver, state.discretization, [], duration=float(nominal_run.time[-1] - t0),
+                   rate_hz=rate)
+    return maneuver, run, dict(estimate, start=report)
 
 
 def _clock(measured, nominal_table, rig, maneuver):
@@ -864,9 +888,10 @@ def test_second_mechanism(state):
 def predict_held_out(state):
     """The trials the fit never saw, predicted by the nominal, the updated and the named model (``_predict``)."""
     entries, series = [], []
-    for (name, _, maneuver), aligned in zip(state.held_out, state.held_aligned):
+    for (name, _, _), aligned in zip(state.held_out, state.held_aligned):
         _note(state, f"predicting the held-out trial {name}")
-        entry, drawn = held_out_entry(state, name, aligned, maneuver)
+        # the aligned trial's maneuver: with its start where a start is read from the recording
+        entry, drawn = held_out_entry(state, name, aligned, aligned["ctx"]["maneuver"])
         entries.append(entry)
         series.append(drawn)
     return replace(state, predictions=entries, predicted_series=series)

@@ -1,0 +1,120 @@
+"""A trial that starts mid-motion: the coordinates a recording resolves start where it has them, the rest settle."""
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dragline.compare.diagnose._start import estimate_start
+from dragline.simulate import (
+    assemble,
+    body_frequencies,
+    default_maneuver,
+    load_rig,
+    simulate,
+    solve_statics,
+    unresolved_coordinates,
+)
+
+BOX = Path(__file__).resolve().parents[1] / "benchmarks" / "real" / "hmer101.toml"
+
+
+@pytest.fixture(scope="module")
+def box():
+    return load_rig(BOX)
+
+
+def test_a_coordinate_alone_is_held_as_stiffly_as_its_wire_and_the_weight_say():
+    pendulum = load_rig("pendulum")
+    model = assemble(pendulum, default_maneuver(pendulum), "baseline", dissipation=False)
+    rest = solve_statics(model, 0.0).state
+    modes, alone = body_frequencies(model, rest)
+    ball, wire = pendulum.bodies["ball"], pendulum.ropes["wire"]
+    mass = ball.mass
+    weight = mass * pendulum.g
+    # along the wire: the springs in series, EA over the length (without dissipation Ks + Kv)
+    axial = (wire.static_stiffness + wire.viscous_stiffness) / wire.length
+    assert (2 * math.pi * alone[0, 2]) ** 2 * mass == pytest.approx(axial, rel=2e-3)
+    # across it, the ball's attitude held: a hanging wire whose tension grows by its weight w up its length L,
+    # x = H / w ln(T_top / T_bottom), so k = w / ln(1 + w L / (m g)) (1 m, stretched 0.2 mm)
+    w, length = wire.weight_per_length, 1.000203
+    across = w / math.log(1.0 + w * length / weight)
+    for k in (0, 1):
+        assert (2 * math.pi * alone[0, k]) ** 2 * mass == pytest.approx(across, rel=5e-3)
+    # turned about a horizontal axis through its centre: the tension at the eye d above it, T d, and the eye's
+    # sideways step d theta on the wire's transverse stiffness, k d^2
+    d = 0.04
+    tilt = weight * d + across * d * d
+    for k in (3, 4):
+        assert (2 * math.pi * alone[0, k]) ** 2 * ball.inertia[1, 1] == pytest.approx(tilt, rel=1e-2)
+    assert alone[0, 5] == pytest.approx(0.0, abs=1e-3)  # nothing resists a turn about the wire
+    assert modes[0, 0] == pytest.approx(0.0, abs=1e-3) and modes[0, -1] == pytest.approx(alone[0, 2], rel=0.05)
+
+
+def test_a_box_on_three_splayed_cables_filmed_at_10_hz_settles_its_height_and_tilts(box):
+    model = assemble(box, default_maneuver(box), "baseline")
+    rest = solve_statics(model, 0.0).state
+    modes, _ = body_frequencies(model, rest)
+    assert (modes[0, :3] < 2.0).all() and (modes[0, 3:] > 10.0).all()  # sway and turn; height and tilts
+    assert unresolved_coordinates(model, rest, 0.0, 10.0) == {"box": ("z", "roll", "pitch")}
+    assert unresolved_coordinates(model, rest, 0.0, 100.0) == {"box": ()}  # every mode below 50 Hz
+
+
+def _yawed(box, settled, duration=0.15, rate_hz=2000.0):
+    start = {"box": {"position": np.zeros(3), "angles": np.array([0.0, 0.0, 0.3]), "settled": settled,
+                     "about_rest": True}}
+    maneuver = dataclasses.replace(default_maneuver(box), start=start)
+    return simulate(box, maneuver, "baseline", duration=duration, rate_hz=rate_hz)
+
+
+def test_a_start_whose_stiff_coordinates_settle_does_not_jolt_the_cables(box):
+    rest = simulate(box, duration=0.01, rate_hz=1000.0).states[0]
+    settled = _yawed(box, ("z", "roll", "pitch"))
+    held = _yawed(box, ())
+    first = settled.states[0]
+    assert first[8] - rest[8] == pytest.approx(0.3, abs=1e-9)  # the turn held where the start put it
+    assert first[2] < rest[2] - 1e-3  # and the box lifted (z down) by turning on its splayed cables
+
+    def jolt(result):
+        # the height's wobble about its slow motion: over 0.15 s (a seventh of the 1 Hz turn, two to three
+        # periods of the cables' 15-22 Hz stretch) a cubic follows the slow part
+        t, z = result.time - result.time[0], result.states[:, 2]
+        return float(np.abs(z - np.polynomial.polynomial.polyval(t, np.polynomial.polynomial.polyfit(t, z, 3))).max())
+
+    assert jolt(settled) < 2e-5
+    assert jolt(held) > 10 * jolt(settled)  # held at rest's height the turned box drops onto its cables
+
+
+def _mid_swing(box, discretization, rate_hz, duration=4.0):
+    start = {"box": {"position": np.array([0.02, -0.01, 0.0]), "angles": np.array([0.0, 0.0, 0.4]),
+                     "velocity": np.array([0.05, 0.03, 0.0]), "rates": np.array([0.0, 0.0, 1.5]),
+                     "settled": ("z", "roll", "pitch"), "about_rest": True}}
+    maneuver = dataclasses.replace(default_maneuver(box), start=start)
+    return simulate(box, maneuver, discretization, duration=duration, rate_hz=rate_hz)
+
+
+def test_a_start_read_from_a_recordings_first_samples_predicts_its_swing(box):
+    # truth: a finer model, filmed at 10 Hz with 0.5 mm and 5 mrad of noise
+    truth = _mid_swing(box, "medium", 10.0)
+    rng = np.random.default_rng(7)
+    table = truth.table
+    measured = {c: np.asarray(table[c], float) + rng.normal(0.0, 5e-4 if c[-1] in "xyz" else 5e-3, len(table))
+                for c in ("box.x", "box.y", "box.z", "box.roll", "box.pitch", "box.yaw")}
+    rest_started = simulate(box, duration=4.0, rate_hz=10.0)
+    start, report = estimate_start(truth.time, measured, rest_started, 10.0)
+    assert report["box"]["settled"] == ["z", "roll", "pitch"] and report["box"]["samples"] >= 8
+    got = start["box"]
+    # the start as the recording shows it: at its first instant the settling cables take some of the pushed
+    # box's momentum (its sway is tied to a tilt that starts at rest), the truth's first 1.5 rad/s reads 1.45
+    assert got["angles"][2] == pytest.approx(0.4, abs=0.02)
+    assert got["rates"][2] == pytest.approx(1.45, rel=0.15)
+    assert got["position"][:2] == pytest.approx([0.02, -0.01], abs=5e-3)
+    assert got["velocity"][2] == 0.0 and got["rates"][0] == got["rates"][1] == 0.0  # settled: at rest
+    started = simulate(box, dataclasses.replace(default_maneuver(box), start=start), "baseline", duration=4.0,
+                       rate_hz=10.0)
+    yaw = np.asarray(table["box.yaw"], float)
+    miss = np.abs(np.asarray(started.table["box.yaw"], float) - yaw)
+    # the whole swing followed (0.4 rad, turning 1.5 rad/s at the start), not a box left at rest
+    assert miss[:10].max() < 0.06 and np.sqrt(np.mean(miss ** 2)) < 0.25 * np.sqrt(np.mean((yaw - yaw.mean()) ** 2))
