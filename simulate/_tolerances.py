@@ -54,7 +54,9 @@ class RigParameter:
     name : str
         The ``[tolerances]`` key, e.g. ``ropes.chain.viscous_damping``.
     kind : str
-        ``mass``, ``cg``, ``rope``, ``fixed_point`` or ``reel_zero``.
+        ``mass``, ``cg``, ``rope``, ``fixed_point`` or ``reel_zero``; ``start``
+        for a coordinate of a maneuver's start (``field`` ``position.K``,
+        ``angles.K``, ``velocity.K`` or ``rates.K``, ``targets`` the body).
     targets : tuple of str
         The bodies, ropes, fixed points or reels it moves.
     field : str
@@ -68,6 +70,10 @@ class RigParameter:
         One standard deviation of the lab's belief, in the parameter's
         coordinate (ln p or SI).
     unit : str
+    trial : str, optional
+        The one trial it belongs to (a ``start`` coordinate: where that
+        trial's recording began, ``compare.diagnose._start``), None for the
+        rig's, which every trial shares.
     """
 
     name: str
@@ -78,6 +84,7 @@ class RigParameter:
     scale: str
     tolerance: float
     unit: str
+    trial: str | None = None
 
     def value(self, coordinate):
         """The parameter's SI value at ``coordinate`` (the update's variable, 0 = nominal)."""
@@ -182,13 +189,16 @@ def apply_parameters(rig, maneuver, parameters, coordinates):
 
     bodies, ropes, fixed = dict(rig.bodies), dict(rig.ropes), dict(rig.fixed_points)
     lengths = dict(maneuver.lengths)
+    start = maneuver.start
     for p, x in zip(parameters, coordinates):
         x = float(x)
         if x == 0.0:
             continue
         value = p.value(x)
         for t in p.targets:
-            if p.kind == "mass":
+            if p.kind == "start":
+                start = _start_moved(start, t, p.field, value)
+            elif p.kind == "mass":
                 b = bodies[t]
                 # Inertia scales with the mass (same shape, denser material).
                 bodies[t] = dataclasses.replace(b, mass=value, inertia=b.inertia * (value / p.nominal))
@@ -205,7 +215,18 @@ def apply_parameters(rig, maneuver, parameters, coordinates):
             else:
                 lengths[t] = lengths[t] + value
     moved = dataclasses.replace(rig, bodies=bodies, ropes=ropes, fixed_points=fixed)
-    return _release_moved(rig, moved), Maneuver(maneuver.time, lengths, dict(maneuver.points), start=maneuver.start)
+    return _release_moved(rig, moved), Maneuver(maneuver.time, lengths, dict(maneuver.points), start=start)
+
+
+def _start_moved(start, body, field, value):
+    """A copy of a maneuver's ``start`` with ``body``'s ``field`` (``angles.2``, say) set to ``value``."""
+    if not start or body not in start:
+        raise ValueError(f"a start coordinate of {body!r} needs the maneuver to start {body!r}")
+    key, k = field.split(".")
+    pose = dict(start[body])
+    pose[key] = np.array(pose[key], float)
+    pose[key][int(k)] = value
+    return dict(start, **{body: pose})
 
 
 def draw_parameters(parameters, rng, spread=1.0, limit=2.0):

@@ -65,11 +65,15 @@ def held_out_entry(state, name, aligned, maneuver):
         What the report draws.
     """
     ctx = aligned["ctx"]
-    params = ctx["parameters"]
+    # the fit's parameters; a fitted trial's start is not this trial's (its own start, where one is read, is in
+    # its maneuver already)
+    shared = [k for k, p in enumerate(state.ctx["parameters"]) if p.kind != "start"]
+    params = [state.ctx["parameters"][k] for k in shared]
     rms, per_channel, sims = {}, {}, {}
     named = None
     for label, rig, coords, physics in _models(state):
-        man = maneuver if coords is None else apply_parameters(state.rig, maneuver, params, coords)[1]
+        man = maneuver if coords is None else apply_parameters(state.rig, maneuver, params,
+                                                               np.asarray(coords)[shared])[1]
         if label == "named":
             named = physics[0].name
         try:

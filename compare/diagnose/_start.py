@@ -33,6 +33,7 @@ import numpy as np
 
 from .._decay import matrix_pencil
 from ...simulate import (
+    RigParameter,
     angles_from_matrix,
     body_frequencies,
     body_rates_from_euler_rates,
@@ -42,7 +43,7 @@ from ...simulate import (
     unresolved_coordinates,
 )
 
-__all__ = ["estimate_start"]
+__all__ = ["estimate_start", "start_parameters"]
 
 # The matrix pencil's least (``_decay.matrix_pencil``); below it a cubic, with a degree of freedom for the noise.
 MIN_SAMPLES = 8
@@ -94,7 +95,7 @@ def estimate_start(time, measured, nominal_run, rate_hz):
         near = np.flatnonzero(np.asarray(time, float) <= t0 + max(window, (MIN_SAMPLES - 0.5) / rate_hz))
         angles_tracked = all(f"{body}.{q}" in measured for q in ("roll", "pitch", "yaw"))
         quantities = ("x", "y", "z", "roll", "pitch", "yaw") if angles_tracked else ("x", "y", "z")
-        value, rate = [], []
+        value, rate, scale = [], [], []
         for q in quantities:
             column = np.asarray(measured[f"{body}.{q}"], float)
             if q in ("roll", "pitch", "yaw"):
@@ -106,6 +107,7 @@ def estimate_start(time, measured, nominal_run, rate_hz):
             # The recording's value read with the constant that makes its mean the rest-started model's.
             value.append(at - np.nanmean(column) + np.nanmean(sim) - sim[0])
             rate.append(slope)
+            scale.append(_motion_scale(column[near], rate_hz))
         value, rate = np.array(value), np.array(rate)
         keep = settled[body]
         velocity = np.where([q in keep for q in "xyz"], 0.0, rate[:3])
@@ -119,9 +121,45 @@ def estimate_start(time, measured, nominal_run, rate_hz):
         start[body] = {"position": value[:3], "angles": angles, "velocity": velocity, "rates": rates,
                        "settled": keep, "about_rest": True}
         report[body] = {"window_s": window, "samples": int(near.size), "settled": list(keep),
+                        "scales": dict(zip(quantities, scale)),
                         "displacement": value[:3], "angles_deg": np.degrees(angles), "velocity": velocity,
                         "rates_deg": np.degrees(rates)}
     return start, report
+
+
+def start_parameters(start, report, trial=None):
+    """Each resolved coordinate of a read ``start`` as a parameter the updating fits with the rig
+    (``RigParameter``, kind ``start``): its displacement and its rate, nominal where it was read.
+
+    Its tolerance is the motion's own size over the window it was read in
+    (the channel's spread about its mean; its rate's RMS): a start is
+    known to within that before any fit, and the fit decides. The turn's
+    rate is the body rate about the same axis (r for yaw), as near a level
+    pose.
+    """
+    out = []
+    prefix = "start." + (f"{trial}." if trial is not None else "")
+    for body, pose in start.items():
+        scales = report[body]["scales"]
+        for k, q in enumerate(("x", "y", "z", "roll", "pitch", "yaw")):
+            if q in pose["settled"] or q not in scales:
+                continue
+            place, speed = scales[q]
+            angle = k >= 3
+            key, moving, j = ("angles", "rates", k - 3) if angle else ("position", "velocity", k)
+            out.append(RigParameter(f"{prefix}{body}.{q}", "start", (body,), f"{key}.{j}", float(pose[key][j]),
+                                    "linear", place, "rad" if angle else "m", trial))
+            out.append(RigParameter(f"{prefix}{body}.{q}_rate", "start", (body,), f"{moving}.{j}",
+                                    float(pose[moving][j]), "linear", speed, "rad/s" if angle else "m/s", trial))
+    return tuple(out)
+
+
+def _motion_scale(values, rate_hz):
+    """The size of a channel's motion over a window: (its spread about its mean, its rate's RMS)."""
+    v = values[np.isfinite(values)]
+    spread = float(np.sqrt(np.mean((v - v.mean()) ** 2)))
+    speed = float(np.sqrt(np.mean(np.diff(v) ** 2))) * rate_hz
+    return spread, speed
 
 
 def _at_start(t, values, channel):

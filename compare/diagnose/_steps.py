@@ -62,7 +62,7 @@ from ._recording import (
 from ._predict import held_out_entry
 from ._scale import machine_scale
 from ._second_round import second_round
-from ._start import estimate_start
+from ._start import estimate_start, start_parameters
 from ._state import NullTest, Recording
 from ._trials import SEPARATOR, first_maneuver
 from ._sites import drop_law_twins, join_alike_sites, screen_sites
@@ -168,7 +168,11 @@ def _stacked(state, trials):
                  "reels_stop_stacked": float(t["t_stop"] - t["time"][0] + time[0]), "ropes": t["alignment"]["ropes"],
                  **({"start": t["alignment"]["start"]} if "start" in t["alignment"] else {})}
                 for name, t in zip(names, trials)])
+    # each trial's start read from its recording is that trial's to fit
+    starts = tuple(p for name, t in zip(names, trials) if "start" in t["alignment"]
+                   for p in start_parameters(t["ctx"]["maneuver"].start, t["alignment"]["start"], name))
     ctx = dict(first["ctx"], maneuver=tuple(t["ctx"]["maneuver"] for t in trials), channels=channels, time=time,
+               parameters=tuple(state.rig.tolerances) + starts,
                initial_state=tuple(t["nominal_run"].states[0] for t in trials),
                trials=tuple({"name": name, "time": t["time"], "channels": t["channels"], "rows": t["time"].size,
                              "duration": t["ctx"]["duration"], "columns": cols}
@@ -242,7 +246,9 @@ def _aligned_trial(state, measured, maneuver, rate=None):
     dt = float(time[1] - time[0])
     ctx = {"rig": rig, "maneuver": maneuver, "discretization": state.discretization, "duration": duration,
            "rate_hz": rate, "initial_state": nominal_run.states[0], "time": time, "channels": channels,
-           "nominal_dt": float(nominal_run.dt), "parameters": tuple(rig.tolerances),
+           "nominal_dt": float(nominal_run.dt),
+           "parameters": tuple(rig.tolerances) + (start_parameters(maneuver.start, estimate["start"])
+                                                  if "start" in estimate else ()),
            # The recording was reconstructed with this rig's geometry (``channels_on``).
            "reported_rig": rig, "scale": scale}
     return {"time": time, "channels": channels, "values": values, "noise": sigma, "rate": rate, "t_stop": t_stop,

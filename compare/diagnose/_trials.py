@@ -70,10 +70,15 @@ def joined_states(ctx, states):
 
 
 def apply_to_trials(ctx, parameters, coords):
-    """``apply_parameters`` on the rig and every trial's maneuver: ``(rig, maneuver or tuple of maneuvers)``."""
+    """``apply_parameters`` on the rig and every trial's maneuver: ``(rig, maneuver or tuple of maneuvers)``;
+    a parameter of one trial (``RigParameter.trial``) moves that trial's maneuver only."""
     if "trials" not in ctx:
         return apply_parameters(ctx["rig"], ctx["maneuver"], parameters, coords)
-    out = [apply_parameters(ctx["rig"], m, parameters, coords) for m in ctx["maneuver"]]
+    out = []
+    for trial, m in zip(ctx["trials"], ctx["maneuver"]):
+        # a trial's own coordinates (its start) move its maneuver alone
+        own = [(p, x) for p, x in zip(parameters, coords) if p.trial in (None, trial["name"])]
+        out.append(apply_parameters(ctx["rig"], m, [p for p, _ in own], [x for _, x in own]))
     return out[0][0], tuple(m for _, m in out)
 
 

@@ -423,8 +423,10 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
     spread = between_trials(X, z, np.r_[coords[active], nuis], 1.0 / prior_var, ctx["channels"], len(active),
                             robust_covariance)
     p_act = len(active)
-    robust[:p_act, :p_act] = widened(robust[:p_act, :p_act], spread["pooled_sd"] if spread is not None else 0.0,
-                                     prior_sd=tol[active])
+    # A trial's own coordinates (its start) are not shared: the trials' disagreement does not widen them.
+    shared = np.array([params[i].trial is None for i in active], bool)
+    pooled = np.where(shared, spread["pooled_sd"], 0.0) if spread is not None else 0.0
+    robust[:p_act, :p_act] = widened(robust[:p_act, :p_act], pooled, prior_sd=tol[active])
     cov = np.diag(tol**2).astype(float)  # a screened-out parameter keeps its prior
     idx = np.ix_(active, active)
     cov[idx] = robust[: len(active), : len(active)]
@@ -1117,6 +1119,8 @@ def _spread_block(params, coords, active, spread):
     out = {"trials": spread["trials"], "parameters": {}}
     for j, i in enumerate(active):
         p = params[i]
+        if p.trial is not None:
+            continue
         values = [p.value(float(x)) for x in spread["estimates"][:, j]]
         scale = (lambda v, sd: v * sd) if p.scale == "log" else (lambda v, sd: sd)
         out["parameters"][p.name] = {
@@ -1141,6 +1145,7 @@ def _calibration_block(params, coords, cov, information, strength, offsets, ctx,
             unc = sd
         entries.append({
             "parameter": p.name,
+            "kind": p.kind,
             "unit": p.unit,
             "nominal": p.nominal,
             "estimate": estimate,
