@@ -37,11 +37,12 @@ class Maneuver:
     source : str
         The file it was read from ("" when built in code): errors name it.
     start : dict, optional
-        The trial's own start, as a rig's ``release`` (body -> ``position``,
-        ``angles``, ``velocity``, ``rates``, and ``settled``: the pose
-        coordinates the ropes settle instead of the hold, ``release_start``):
-        a recording that begins mid-motion (``estimate_start``). It replaces
-        the rig's release; None: the rig's own start.
+        The trial's own start, as ``simulate``'s ``release`` (body ->
+        ``position``, ``angles``, ``velocity``, ``rates``, ``settled``,
+        ``about_rest``): a recording that begins mid-motion
+        (``compare.diagnose._start``). It replaces the rig's release; None:
+        the rig's own start. Not compared: two maneuvers with the same
+        tables are equal whatever their starts.
     """
 
     time: np.ndarray

@@ -381,10 +381,11 @@ def simulate(
         let go of it moving; ``settled``: pose coordinates of
         ``POSE_COORDINATES`` the ropes settle from there instead of the
         hold; ``about_rest``: position and angles are a displacement from
-        the rig's rest pose at the start): the trial starts from a release, those bodies held there at
-        rest, the ropes (and any body not named) settled under them, then
-        let go. By default the maneuver's ``start``, else the rig's own
-        ``release``, else the static equilibrium.
+        the rig's rest pose at the start): the trial starts from a
+        release, those bodies held there at rest, the ropes (and any body
+        not named) settled under them, then let go. By default the
+        maneuver's ``start``, else the rig's own ``release``, else the
+        static equilibrium.
     integrator : {"verlet", "rk4"}
         Kick-drift-kick velocity Verlet (``_verlet``: one right-hand side a
         step, about twice as fast at the baseline) or classical RK4, the

@@ -12,7 +12,11 @@ from them.
 
 A key names what it moves:
 
-- ``bodies.<body>.mass``, ``bodies.<body>.cg_x`` (or ``cg_y``, ``cg_z``)
+- ``bodies.<body>.mass``, ``bodies.<body>.cg_x`` (or ``cg_y``, ``cg_z``),
+  ``bodies.<body>.inertia_x`` (or ``inertia_y``, ``inertia_z``: a principal
+  moment, about the body's axis; it multiplies what the mass leaves)
+- ``bodies.<body>.points.<point>.x`` (or ``y``, ``z``): where a rope is
+  attached on a body (body frame), as a tape measures it
 - ``ropes.<group>.<property>`` with ``<property>`` one of
   ``static_stiffness``, ``viscous_stiffness``, ``viscous_damping`` or
   ``length`` (the unstretched length of a rope on no winch, m), and
@@ -54,7 +58,8 @@ class RigParameter:
     name : str
         The ``[tolerances]`` key, e.g. ``ropes.chain.viscous_damping``.
     kind : str
-        ``mass``, ``cg``, ``rope``, ``fixed_point`` or ``reel_zero``; ``start``
+        ``mass``, ``cg``, ``inertia``, ``point``, ``rope``, ``fixed_point`` or
+        ``reel_zero``; ``start``
         for a coordinate of a maneuver's start (``field`` ``position.K``,
         ``angles.K``, ``velocity.K`` or ``rates.K``, ``targets`` the body).
     targets : tuple of str
@@ -139,6 +144,16 @@ def parse_tolerances(doc, bodies, ropes, fixed, source="rig", winches=None):
             else:
                 kind, fld, nominal, unit = "cg", parts[2][-1], float(body.cg_body[_AXES[parts[2][-1]]]), "m"
             targets = (parts[1],)
+        elif parts[0] == "bodies" and len(parts) == 3 and parts[1] in bodies \
+                and parts[2] in ("inertia_x", "inertia_y", "inertia_z"):
+            k = _AXES[parts[2][-1]]
+            kind, fld, nominal, unit = "inertia", parts[2][-1], float(bodies[parts[1]].inertia[k, k]), "kg m^2"
+            targets = (parts[1],)
+        elif parts[0] == "bodies" and len(parts) == 5 and parts[1] in bodies and parts[2] == "points" \
+                and parts[3] in bodies[parts[1]].points and parts[4] in _AXES:
+            kind, fld, unit = "point", f"{parts[3]}.{parts[4]}", "m"
+            nominal = float(bodies[parts[1]].points[parts[3]][_AXES[parts[4]]])
+            targets = (parts[1],)
         elif parts[0] == "ropes" and len(parts) == 3 and parts[2] in _ROPE_PROPERTIES \
                 and (parts[1] in groups or parts[1] in ropes):
             targets = groups.get(parts[1], (parts[1],))
@@ -202,6 +217,16 @@ def apply_parameters(rig, maneuver, parameters, coordinates):
                 b = bodies[t]
                 # Inertia scales with the mass (same shape, denser material).
                 bodies[t] = dataclasses.replace(b, mass=value, inertia=b.inertia * (value / p.nominal))
+            elif p.kind == "inertia":
+                inertia = np.array(bodies[t].inertia, float)
+                k = _AXES[p.field]
+                inertia[k, k] *= value / p.nominal  # on top of the mass's scaling, in either order
+                bodies[t] = dataclasses.replace(bodies[t], inertia=inertia)
+            elif p.kind == "point":
+                name, axis = p.field.split(".")
+                xyz = np.array(bodies[t].points[name], float)
+                xyz[_AXES[axis]] = value
+                bodies[t] = dataclasses.replace(bodies[t], points=dict(bodies[t].points, **{name: xyz}))
             elif p.kind == "cg":
                 cg = bodies[t].cg_body.copy()
                 cg[_AXES[p.field]] = value

@@ -132,3 +132,62 @@ def test_a_release_moves_with_the_drawn_pivot_and_mass_centre():
     expected = np.asarray(pose["position"]) + [0.0, 0.0, 0.003] + turn @ [0.0, 0.0, 0.002]
     np.testing.assert_allclose(drawn.release["ball"]["position"], expected, atol=1e-12)
     assert simulate(drawn, maneuver, duration=0.05).equilibrium_residual < 1e-6  # a taut start exists
+
+
+def _box_with(tolerances):
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "real" / "hmer101.toml"
+    doc = tomllib.loads(path.read_text())
+    doc["maneuver"], doc["tolerances"] = str(path.parent / doc["maneuver"]), tolerances
+    return rig_from_dict(doc, source="box")
+
+
+def test_an_inertia_tolerance_turns_the_box_on_its_cables_as_one_over_its_root():
+    # the box's turn on its three cables, the rest held: omega^2 = K / I_zz, the cables' K untouched
+    from dragline.simulate import assemble, body_frequencies, default_maneuver, solve_statics
+
+    rig = _box_with({"bodies.box.inertia_z": {"relative": 0.1}, "bodies.box.mass": {"relative": 0.01}})
+    inertia, mass = rig.tolerances[0], rig.tolerances[1]
+    assert (inertia.kind, inertia.nominal) == ("inertia", pytest.approx(0.0210))
+
+    def turn(coords):
+        moved, maneuver = apply_parameters(rig, default_maneuver(rig), rig.tolerances, coords)
+        model = assemble(moved, maneuver, "baseline")
+        return moved, body_frequencies(model, solve_statics(model, 0.0).state)[1][0, 5]
+
+    _, base = turn([0.0, 0.0])
+    moved, heavier = turn([math.log(1.21), 0.0])
+    assert heavier == pytest.approx(base / 1.1, rel=1e-6)
+    assert moved.bodies["box"].inertia[2, 2] == pytest.approx(0.0210 * 1.21)
+    assert moved.bodies["box"].inertia[0, 0] == rig.bodies["box"].inertia[0, 0]
+    # with the mass moved too the moment is both factors' product, in either order
+    both, _ = apply_parameters(rig, default_maneuver(rig), rig.tolerances, [math.log(1.21), math.log(1.02)])
+    assert both.bodies["box"].inertia[2, 2] == pytest.approx(0.0210 * 1.21 * 1.02)
+    assert both.bodies["box"].inertia[0, 0] == pytest.approx(rig.bodies["box"].inertia[0, 0] * 1.02)
+
+
+def test_an_attachment_tolerance_moves_where_the_rope_holds_the_body():
+    # the pendulum's eye 10 mm higher on the ball: the ball's centre hangs 10 mm lower, the wire as long
+    folder = resources.files("dragline.simulate").joinpath("data")
+    doc = tomllib.loads(folder.joinpath("pendulum.toml").read_text())
+    doc.pop("release")
+    doc["maneuver"] = str(folder.joinpath(doc["maneuver"]))
+    doc["tolerances"] = {"bodies.ball.points.eye.z": {"absolute": 0.005}}
+    free = rig_from_dict(doc, source="pendulum")
+    (eye,) = free.tolerances
+    assert (eye.kind, eye.unit, eye.nominal) == ("point", "m", -0.04)
+    from dragline.simulate import default_maneuver
+
+    moved, maneuver = apply_parameters(free, default_maneuver(free), free.tolerances, [-0.01])
+    np.testing.assert_allclose(moved.bodies["ball"].points["eye"], [0.0, 0.0, -0.05])
+    assert free.bodies["ball"].points["eye"][2] == -0.04  # the input is not modified
+    low = simulate(moved, maneuver, duration=0.01).states[0][2]
+    high = simulate(free, default_maneuver(free), duration=0.01).states[0][2]
+    assert low - high == pytest.approx(0.01, abs=1e-6)
+
+
+@pytest.mark.parametrize("key", ["bodies.box.inertia_w", "bodies.box.points.nowhere.x", "bodies.box.points.a1.w"])
+def test_an_inertia_or_attachment_key_that_names_nothing_is_refused(key):
+    with pytest.raises(ValueError, match="unknown parameter"):
+        _box_with({key: {"absolute": 0.01}})

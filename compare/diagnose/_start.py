@@ -20,9 +20,12 @@ and how it moves at the trial's first instant, as the maneuver's ``start``:
   of the body's slowest resolved mode from the start: near its start each
   channel is ruled by one swing, and on a 10 Hz track of a 1 Hz turn the
   rate at the first sample is then within 2-4 % where a cubic over half a
-  period was 25 % off (its slope at the window's end; tests).
+  period was 26 % off (its slope at the window's end; tests).
 A body whose attitude is not tracked starts at the rest pose's attitude,
 not turning; a body whose position is not tracked is not held at all.
+What is read is a first guess: ``start_parameters`` makes each resolved
+coordinate's displacement and rate a parameter of the trial, fitted with
+the rig.
 """
 
 from __future__ import annotations
@@ -147,10 +150,13 @@ def start_parameters(start, report, trial=None):
             place, speed = scales[q]
             angle = k >= 3
             key, moving, j = ("angles", "rates", k - 3) if angle else ("position", "velocity", k)
-            out.append(RigParameter(f"{prefix}{body}.{q}", "start", (body,), f"{key}.{j}", float(pose[key][j]),
-                                    "linear", place, "rad" if angle else "m", trial))
-            out.append(RigParameter(f"{prefix}{body}.{q}_rate", "start", (body,), f"{moving}.{j}",
-                                    float(pose[moving][j]), "linear", speed, "rad/s" if angle else "m/s", trial))
+            # a channel that did not move at all (no noise either) is known where it was read: not fitted
+            if place > 0:
+                out.append(RigParameter(f"{prefix}{body}.{q}", "start", (body,), f"{key}.{j}", float(pose[key][j]),
+                                        "linear", place, "rad" if angle else "m", trial))
+            if speed > 0:
+                out.append(RigParameter(f"{prefix}{body}.{q}_rate", "start", (body,), f"{moving}.{j}",
+                                        float(pose[moving][j]), "linear", speed, "rad/s" if angle else "m/s", trial))
     return tuple(out)
 
 
@@ -190,4 +196,3 @@ def _body_rates(angles, angle_rates, sequence, settled):
         if q in settled:
             turning[k] = 0.0
     return np.array(body_rates_from_euler_rates(now[0], now[2], *turning), float)
-
