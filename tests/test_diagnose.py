@@ -104,6 +104,31 @@ def test_noise_level_recovers_white_noise_under_a_swing():
         assert abs(est / sigma - 1) < 0.06
 
 
+def test_noise_level_at_10_hz_is_the_trackers_not_the_turns():
+    # a box turning 0.3-0.6 rad at 0.94 Hz, read at 10 Hz for 7 s (the three-drone hold), with 0.5 or 5 mrad of
+    # white noise: the second difference alone reads the turn (8 to 170 times the noise)
+    t = np.arange(70) / 10.0
+    rng = np.random.default_rng(3)
+    for amplitude in (0.3, 0.6):
+        for sigma in (5e-4, 5e-3):
+            ratios = []
+            for _ in range(40):
+                y = amplitude * np.sin(2 * np.pi * 0.94 * t + rng.uniform(0, 6.3)) + rng.normal(0, sigma, t.size)
+                ratios.append(noise_level(y, "angle") / sigma)
+                second = np.diff(y, 2)
+                assert 1.4826 * np.median(np.abs(second - np.median(second))) / math.sqrt(6) > 5 * sigma
+            assert abs(np.median(ratios) - 1.0) < 0.25 and max(ratios) < 2.5
+
+
+def test_noise_level_at_200_hz_is_the_second_differences_as_ever():
+    t = np.arange(2000) / 200.0
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        y = 0.3 * np.sin(2 * np.pi * 0.6 * t) + rng.normal(0, 1e-3, t.size)
+        second = np.diff(y, 2)
+        assert noise_level(y, "position") == 1.4826 * np.median(np.abs(second - np.median(second))) / math.sqrt(6)
+
+
 def test_low_pass_passes_a_swing_and_shrinks_noise():
     t = np.arange(4000) / 200.0
     rng = np.random.default_rng(1)

@@ -60,6 +60,11 @@ STRUCTURE_FLOOR = {"position": 1.0e-3, "angle": math.radians(0.25), "rope_length
 # Lowest noise level believed (a table with less noise than this was
 # smoothed or simulated; sigma must not go to zero).
 NOISE_FLOOR = {"position": 5.0e-5, "angle": 2.0e-4, "rope_length": 5.0e-5}
+# The noise's differences go no higher than this: a tenth difference shrinks a swing at a tenth of the rate by
+# (2 sin(0.31))^10 = 0.005 and amplifies the noise by sqrt(184756) = 430, still far from rounding in float64.
+MAX_DIFFERENCE_ORDER = 10
+# A MAD-based deviation's relative standard error times sqrt(n) (the MAD's efficiency at the normal, 37 %).
+MAD_RELATIVE_SE = 1.16
 # Windows: maneuver phases shorter than this are merged with the next one;
 # a maneuver with more phases than MAX_PHASES is cut into 1 s windows.
 MIN_WINDOW_S = 0.5
@@ -67,7 +72,20 @@ MAX_PHASES = 8
 
 
 def noise_level(values, kind="position", scale=REFERENCE):
-    """White-noise level of a sampled signal from its second difference.
+    """White-noise level of a sampled signal from its differences, of the second order or higher.
+
+    The k-th difference of white noise of deviation s has deviation
+    s sqrt(C(2k, k)); a motion of angular frequency w sampled every dt is
+    shrunk by (2 sin(w dt / 2))^k. At 200 Hz the second difference holds
+    noise alone; at 10 Hz a 1 Hz swing (w dt = 0.63) leaves a second
+    difference of 0.4 times its amplitude, and a box turning 0.3 rad read
+    as 30 mrad of noise where the tracker's is a few. Every order up to
+    ``MAX_DIFFERENCE_ORDER`` is estimated (the MAD of the difference).
+    Where the third is not lower than the second by three standard errors
+    (the MAD's, ``MAD_RELATIVE_SE`` / sqrt(n) relative) noise rules, and
+    the second's is taken, as it always was; else the lowest order within
+    three standard errors of the lowest estimate (the least estimate
+    itself would be biased low).
 
     Parameters
     ----------
@@ -85,13 +103,24 @@ def noise_level(values, kind="position", scale=REFERENCE):
         Standard deviation (unit of the signal), at least the floor.
     """
     y = np.asarray(values, float)
-    d2 = y[2:] - 2.0 * y[1:-1] + y[:-2]
-    d2 = d2[np.isfinite(d2)]
     floor = scale.floor(NOISE_FLOOR, kind if kind in NOISE_FLOOR else "position")
-    if d2.size < 10:
+    estimates, counts = [], []
+    for order in range(2, MAX_DIFFERENCE_ORDER + 1):
+        d = np.diff(y, order)
+        d = d[np.isfinite(d)]
+        if d.size < 10:
+            break
+        mad = float(np.median(np.abs(d - np.median(d))))
+        estimates.append(1.4826 * mad / math.sqrt(math.comb(2 * order, order)))
+        counts.append(d.size)
+    if not estimates:
         return floor
-    mad = float(np.median(np.abs(d2 - np.median(d2))))
-    return max(1.4826 * mad / math.sqrt(6.0), floor)
+    margin = [1.0 + 3.0 * MAD_RELATIVE_SE / math.sqrt(n) for n in counts]
+    if len(estimates) == 1 or estimates[1] * margin[1] >= estimates[0]:
+        return max(estimates[0], floor)  # the third difference no lower: noise rules the second
+    lowest = min(estimates)
+    best = next(e for e, m in zip(estimates, margin) if e <= lowest * m)
+    return max(best, floor)
 
 
 def low_pass(values, width):
