@@ -59,9 +59,9 @@ class RigParameter:
         The ``[tolerances]`` key, e.g. ``ropes.chain.viscous_damping``.
     kind : str
         ``mass``, ``cg``, ``inertia``, ``point``, ``rope``, ``fixed_point`` or
-        ``reel_zero``; ``start``
-        for a coordinate of a maneuver's start (``field`` ``position.K``,
-        ``angles.K``, ``velocity.K`` or ``rates.K``, ``targets`` the body).
+        ``reel_zero``; ``start`` for a coordinate of a maneuver's start
+        (``field`` ``position.K``, ``angles.K``, ``velocity.K`` or
+        ``rates.K``, ``targets`` the body).
     targets : tuple of str
         The bodies, ropes, fixed points or reels it moves.
     field : str
