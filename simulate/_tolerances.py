@@ -25,6 +25,9 @@ A key names what it moves:
 - ``fixed_points.<point>.x`` (or ``y``, ``z``)
 - ``winches.<winch>.zero`` (or ``reels.<winch>.zero``): an offset (m) added to the maneuver's
   length, as a miscounted drum would give
+- ``tracks.<point>.x`` (or ``y``, ``z``): a constant offset (m) of a point's
+  measured track, each trial its own - where a rope hangs under a tracked
+  origin (a drone's markers) can change from flight to flight
 
 and its value is a table with ``relative`` (a fraction of the nominal
 value), ``absolute`` (SI units of the parameter) or ``factor`` (the truth
@@ -61,7 +64,8 @@ class RigParameter:
         ``mass``, ``cg``, ``inertia``, ``point``, ``rope``, ``fixed_point`` or
         ``reel_zero``; ``start`` for a coordinate of a maneuver's start
         (``field`` ``position.K``, ``angles.K``, ``velocity.K`` or
-        ``rates.K``, ``targets`` the body).
+        ``rates.K``, ``targets`` the body); ``track`` for a point's track
+        offset. Those two are each trial's own (``of_a_trial``).
     targets : tuple of str
         The bodies, ropes, fixed points or reels it moves.
     field : str
@@ -90,6 +94,11 @@ class RigParameter:
     tolerance: float
     unit: str
     trial: str | None = None
+
+    @property
+    def of_a_trial(self):
+        """Whether each trial has its own value (a start, a track's offset), not one the trials share."""
+        return self.kind in ("start", "track")
 
     def value(self, coordinate):
         """The parameter's SI value at ``coordinate`` (the update's variable, 0 = nominal)."""
@@ -166,6 +175,8 @@ def parse_tolerances(doc, bodies, ropes, fixed, source="rig", winches=None):
             kind, fld, nominal, unit = "rope", parts[2], float(values.pop()), _ROPE_UNITS[parts[2]]
         elif parts[0] == "fixed_points" and len(parts) == 3 and parts[1] in fixed and parts[2] in _AXES:
             kind, fld, nominal, unit, targets = "fixed_point", parts[2], float(fixed[parts[1]][_AXES[parts[2]]]), "m", (parts[1],)
+        elif parts[0] == "tracks" and len(parts) == 3 and parts[1] in fixed and parts[2] in _AXES:
+            kind, fld, nominal, unit, targets = "track", parts[2], 0.0, "m", (parts[1],)
         elif parts[0] in ("winches", "reels") and len(parts) == 3 and parts[1] in (winches or {}) \
                 and parts[2] == "zero":
             kind, fld, nominal, unit, targets = "reel_zero", "zero", 0.0, "m", (parts[1],)
@@ -203,7 +214,7 @@ def apply_parameters(rig, maneuver, parameters, coordinates):
     from ._maneuver import Maneuver
 
     bodies, ropes, fixed = dict(rig.bodies), dict(rig.ropes), dict(rig.fixed_points)
-    lengths = dict(maneuver.lengths)
+    lengths, points = dict(maneuver.lengths), dict(maneuver.points)
     start = maneuver.start
     for p, x in zip(parameters, coordinates):
         x = float(x)
@@ -213,6 +224,12 @@ def apply_parameters(rig, maneuver, parameters, coordinates):
         for t in p.targets:
             if p.kind == "start":
                 start = _start_moved(start, t, p.field, value)
+            elif p.kind == "track" and t in points:
+                points[t] = np.asarray(points[t], float) + value * np.eye(3)[_AXES[p.field]]
+            elif p.kind == "track":  # a point the maneuver does not move: the rig's place of it
+                xyz = fixed[t].copy()
+                xyz[_AXES[p.field]] += value
+                fixed[t] = xyz
             elif p.kind == "mass":
                 b = bodies[t]
                 # Inertia scales with the mass (same shape, denser material).
@@ -240,7 +257,7 @@ def apply_parameters(rig, maneuver, parameters, coordinates):
             else:
                 lengths[t] = lengths[t] + value
     moved = dataclasses.replace(rig, bodies=bodies, ropes=ropes, fixed_points=fixed)
-    return _release_moved(rig, moved), Maneuver(maneuver.time, lengths, dict(maneuver.points), start=start)
+    return _release_moved(rig, moved), Maneuver(maneuver.time, lengths, points, start=start)
 
 
 def _start_moved(start, body, field, value):

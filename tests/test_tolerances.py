@@ -191,3 +191,24 @@ def test_an_attachment_tolerance_moves_where_the_rope_holds_the_body():
 def test_an_inertia_or_attachment_key_that_names_nothing_is_refused(key):
     with pytest.raises(ValueError, match="unknown parameter"):
         _box_with({key: {"absolute": 0.01}})
+
+
+def test_a_tracks_offset_is_each_trials_own_and_moves_that_trials_point():
+    from dragline.compare.diagnose._trials import apply_to_trials, each_trials_own
+    from dragline.simulate import default_maneuver
+
+    rig = _box_with({"tracks.drone1.z": {"absolute": 0.05}, "bodies.box.mass": {"relative": 0.01}})
+    track, mass = rig.tolerances
+    assert (track.kind, track.of_a_trial, mass.of_a_trial) == ("track", True, False)
+    maneuver = default_maneuver(rig)
+    params = each_trials_own(rig.tolerances, ["a", "b"])
+    assert [p.name for p in params] == ["tracks.a.drone1.z", "tracks.b.drone1.z", "bodies.box.mass"]
+    ctx = {"rig": rig, "maneuver": (maneuver, maneuver), "trials": ({"name": "a"}, {"name": "b"})}
+    moved, (first, second) = apply_to_trials(ctx, params, [0.02, 0.0, math.log(1.01)])
+    np.testing.assert_allclose(first.points["drone1"], maneuver.points["drone1"] + [0.0, 0.0, 0.02])
+    np.testing.assert_array_equal(second.points["drone1"], maneuver.points["drone1"])
+    np.testing.assert_array_equal(first.points["drone2"], maneuver.points["drone2"])
+    assert moved.bodies["box"].mass == pytest.approx(1.6868 * 1.01)  # the shared one moves the one rig
+    # a point no maneuver moves: its place in the rig
+    still, _ = apply_parameters(rig, maneuver.__class__([0.0]), [track], [0.02])
+    assert still.fixed_points["drone1"][2] == pytest.approx(rig.fixed_points["drone1"][2] + 0.02)

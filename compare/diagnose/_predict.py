@@ -65,9 +65,8 @@ def held_out_entry(state, name, aligned, maneuver):
         What the report draws.
     """
     ctx = aligned["ctx"]
-    # the fit's parameters; a fitted trial's start is not this trial's (its own start, where one is read, is in
-    # its maneuver already)
-    shared = [k for k, p in enumerate(state.ctx["parameters"]) if p.kind != "start"]
+    # the fit's shared parameters: a fitted trial's own (its start, its tracks' offsets) are not this trial's
+    shared = [k for k, p in enumerate(state.ctx["parameters"]) if not p.of_a_trial]
     params = [state.ctx["parameters"][k] for k in shared]
     rms, per_channel, sims = {}, {}, {}
     named = None

@@ -64,7 +64,7 @@ from ._scale import machine_scale
 from ._second_round import second_round
 from ._start import estimate_start, start_parameters
 from ._state import NullTest, Recording
-from ._trials import SEPARATOR, first_maneuver
+from ._trials import SEPARATOR, each_trials_own, first_maneuver
 from ._sites import drop_law_twins, join_alike_sites, screen_sites
 from ._summary import significant_updates, stated_uncertainty, structure_energy
 from ._updating import (
@@ -172,7 +172,7 @@ def _stacked(state, trials):
     starts = tuple(p for name, t in zip(names, trials) if "start" in t["alignment"]
                    for p in start_parameters(t["ctx"]["maneuver"].start, t["alignment"]["start"], name))
     ctx = dict(first["ctx"], maneuver=tuple(t["ctx"]["maneuver"] for t in trials), channels=channels, time=time,
-               parameters=tuple(state.rig.tolerances) + starts,
+               parameters=each_trials_own(state.rig.tolerances, names) + starts,
                initial_state=tuple(t["nominal_run"].states[0] for t in trials),
                trials=tuple({"name": name, "time": t["time"], "channels": t["channels"], "rows": t["time"].size,
                              "duration": t["ctx"]["duration"], "columns": cols}

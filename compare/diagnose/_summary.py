@@ -191,11 +191,11 @@ def calibration_doc(update, joints, ctx, named=None):
 
 def significant_updates(update, min_shift=2.0, most=4):
     """The largest updates a lab would notice: identifiable, beyond one tolerance and ``min_shift`` posterior sd
-    (a trial's start is not the rig's: not among them)."""
+    (a trial's start or track offset is not the rig's: not among them)."""
     if update is None:
         return []
     moved = [e for e in update["block"]["parameters"]
-             if e["identifiable"] and abs(e["shift_in_tolerances"]) > 1.0 and e.get("kind") != "start"
+             if e["identifiable"] and abs(e["shift_in_tolerances"]) > 1.0 and e.get("kind") not in ("start", "track")
              and abs(e["coordinate"]) > min_shift * e["coordinate_sd"]]
     moved.sort(key=lambda e: -abs(e["shift_in_tolerances"]))
     return [e["description"] for e in moved[:most]]

@@ -20,12 +20,14 @@ would have it.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ...simulate import apply_parameters
 
 __all__ = ["SEPARATOR", "split_channel", "trial_contexts", "stack_trials", "joined_states", "apply_to_trials",
-           "first_maneuver"]
+           "first_maneuver", "each_trials_own"]
 
 SEPARATOR = "/"
 
@@ -85,3 +87,16 @@ def apply_to_trials(ctx, parameters, coords):
 def first_maneuver(ctx):
     """The first trial's maneuver (the one maneuver of a one-trial context): what a cost estimate assembles."""
     return ctx["maneuver"][0] if "trials" in ctx else ctx["maneuver"]
+
+
+def each_trials_own(parameters, names):
+    """The rig's parameters with each one a trial has its own of (``RigParameter.of_a_trial``: a track's
+    offset) repeated for every trial, ``tracks.drone.z`` becoming ``tracks.TRIAL.drone.z``."""
+    out = []
+    for p in parameters:
+        if not p.of_a_trial:
+            out.append(p)
+            continue
+        head, _, rest = p.name.partition(".")
+        out += [dataclasses.replace(p, name=f"{head}.{name}.{rest}", trial=name) for name in names]
+    return tuple(out)

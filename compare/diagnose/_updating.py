@@ -424,7 +424,7 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
                             robust_covariance)
     p_act = len(active)
     # A trial's own coordinates (its start) are not shared: the trials' disagreement does not widen them.
-    shared = np.array([params[i].trial is None for i in active], bool)
+    shared = np.array([not params[i].of_a_trial for i in active], bool)
     pooled = np.where(shared, spread["pooled_sd"], 0.0) if spread is not None else 0.0
     robust[:p_act, :p_act] = widened(robust[:p_act, :p_act], pooled, prior_sd=tol[active])
     cov = np.diag(tol**2).astype(float)  # a screened-out parameter keeps its prior
@@ -1119,7 +1119,7 @@ def _spread_block(params, coords, active, spread):
     out = {"trials": spread["trials"], "parameters": {}}
     for j, i in enumerate(active):
         p = params[i]
-        if p.trial is not None:
+        if p.of_a_trial:
             continue
         values = [p.value(float(x)) for x in spread["estimates"][:, j]]
         scale = (lambda v, sd: v * sd) if p.scale == "log" else (lambda v, sd: sd)
