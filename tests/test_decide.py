@@ -97,6 +97,17 @@ def test_two_candidates_within_the_threshold_cannot_be_told_apart_unless_one_sit
     assert verdict == "pulley_inertia"
 
 
+def test_the_same_law_at_sites_the_data_cannot_tell_apart_is_named_with_them():
+    # crane seed 302's payload drag at five times its threshold: the law at block+payload and everywhere, 73.5 apart
+    best = _hypothesis("aero_drag@block+payload", 533777.5, 60.0, 3.0)
+    rival = _hypothesis("aero_drag", 533704.0, 60.0, 3.0)
+    verdict, reason = decide([best, rival], THRESHOLD, [], [])
+    assert verdict == "aero_drag@block+payload" and "cannot tell its sites from those of aero_drag" in reason
+    # another law as close is still a rival the data cannot tell apart
+    verdict, reason = decide([best, dict(rival, name="pulley_friction@head_sheave")], THRESHOLD, [], [])
+    assert verdict == "unexplained" and "about equally well" in reason
+
+
 def test_a_lead_counts_when_it_beats_noise_and_what_the_residuals_random_part_could_give():
     # Gantry crane case 83709 (hook-sheave friction hidden): held-out improvements 5.23e6 and 4.81e6, a
     # threshold of 889,521 (the model-error budget) of which noise alone gives 2,702.

@@ -197,7 +197,9 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
        beyond what noise alone gives (``noise_threshold``) or by more than
        the residual's random part could give it (``_lead.lead_tests``, the
        best's ``leads``): "unexplained" (indistinguishable). A rival at an
-       end of its range is no rival.
+       end of its range is no rival; nor is the best's own law at other
+       sites (``law@sites``): the law is named, and the reason says which
+       site sets it could not be told from.
     4b. The best candidate's signature correlates with a rig parameter's
        sensitivity beyond ``CONFOUNDED`` and that parameter could make it
        within ``BOUND_TOLERANCES`` of its tolerance (the updating's own
@@ -268,9 +270,13 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
     # parameters (a hidden sheave inertia's rival, chain-link friction, sat
     # at its lower end within the noise threshold of the right one).
     noise = threshold if noise_threshold is None else noise_threshold
+    # The same law at other sites is no rival law: the law is told, the sites it ties with are said (issue 39).
+    same_law = []
     for rival in (h for h in sig[1:] if not h["at_bound"]):
         why = _no_lead(best, rival, noise)
-        if why:
+        if why and _law(rival["name"]) == _law(best["name"]):
+            same_law.append(rival["name"])
+        elif why:
             return "unexplained", (f"{best['name']} and {rival['name']} explain the mismatch about equally well "
                                    f"(held-out improvements {best['improvement']:.1f} and "
                                    f"{rival['improvement']:.1f}: {why}); the data cannot tell them apart")
@@ -298,7 +304,15 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
         reason += f"; runner-up {sig[1]['name']} by {sig[1]['improvement']:.1f}"
     if structured_after:
         reason += f"; a smaller structured mismatch remains at {where(structured_after)}"
+    if same_law:
+        reason += (f"; the recording cannot tell its sites from those of {', '.join(same_law)} (the same law, "
+                   "about equally good)")
     return best["name"], reason
+
+
+def _law(name):
+    """A candidate's law: its name without its sites (``aero_drag@payload`` -> ``aero_drag``)."""
+    return name.partition("@")[0]
 
 
 def verdict_of_document(document, rules=None):
