@@ -63,7 +63,7 @@ def let_go(model, state, t, release):
     return y
 
 
-def unresolved_coordinates(model, state, t, rate_hz):
+def unresolved_coordinates(model, state, t, rate_hz, frequencies=None):
     """Per body, the pose coordinates a recording at ``rate_hz`` cannot set a start in: body -> tuple of names.
 
     A body's modes (``body_frequencies``: its ropes following statically)
@@ -73,11 +73,12 @@ def unresolved_coordinates(model, state, t, rate_hz):
     such modes, those the ropes hold most stiffly alone: a box on three
     splayed cables filmed at 10 Hz has three (15-22 Hz, its height and
     tilts on the cables' stretch) and keeps its sway and turn (0.6-0.9 Hz)
-    where the recording has them.
+    where the recording has them. ``frequencies``: ``body_frequencies``'s
+    result at ``state``, where the caller has it already.
     """
     from ._modes import body_frequencies
 
-    modes, alone = body_frequencies(model, state, t)
+    modes, alone = body_frequencies(model, state, t) if frequencies is None else frequencies
     out = {}
     for b, name in enumerate(model.body_names):
         fast = int(np.sum(modes[b] > 0.5 * rate_hz))

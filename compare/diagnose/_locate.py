@@ -104,7 +104,7 @@ def noise_level(values, kind="position", scale=REFERENCE):
     """
     y = np.asarray(values, float)
     floor = scale.floor(NOISE_FLOOR, kind if kind in NOISE_FLOOR else "position")
-    estimates, counts = [], []
+    estimates, margin = [], []
     for order in range(2, MAX_DIFFERENCE_ORDER + 1):
         d = np.diff(y, order)
         d = d[np.isfinite(d)]
@@ -112,12 +112,13 @@ def noise_level(values, kind="position", scale=REFERENCE):
             break
         mad = float(np.median(np.abs(d - np.median(d))))
         estimates.append(1.4826 * mad / math.sqrt(math.comb(2 * order, order)))
-        counts.append(d.size)
+        margin.append(1.0 + 3.0 * MAD_RELATIVE_SE / math.sqrt(d.size))
+        if order == 3 and estimates[1] * margin[1] >= estimates[0]:
+            break  # the third difference no lower: noise rules the second, no higher order is needed
     if not estimates:
         return floor
-    margin = [1.0 + 3.0 * MAD_RELATIVE_SE / math.sqrt(n) for n in counts]
     if len(estimates) == 1 or estimates[1] * margin[1] >= estimates[0]:
-        return max(estimates[0], floor)  # the third difference no lower: noise rules the second
+        return max(estimates[0], floor)
     lowest = min(estimates)
     best = next(e for e, m in zip(estimates, margin) if e <= lowest * m)
     return max(best, floor)

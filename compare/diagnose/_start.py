@@ -86,8 +86,9 @@ def estimate_start(time, measured, nominal_run, rate_hz):
     """
     model, t0 = nominal_run.model, float(nominal_run.time[0])
     rest = nominal_run.states[0]
-    settled = unresolved_coordinates(model, rest, t0, rate_hz)
-    modes, _ = body_frequencies(model, rest, t0)
+    frequencies = body_frequencies(model, rest, t0)
+    settled = unresolved_coordinates(model, rest, t0, rate_hz, frequencies)
+    modes = frequencies[0]
     table = nominal_run.table
     start, report = {}, {}
     for b, body in enumerate(model.body_names):
