@@ -142,18 +142,24 @@ def truth_site_cosines(name, value, seed, rig_name=None):
     return {s: float(v @ own / math.sqrt(max((v @ v) * (own @ own), 1e-300))) for s, v in shapes.items()}
 
 
-def site_right(name, verdict, cosines, alike=SITES_ALIKE):
+def site_right(name, verdict, cosines, alike=SITES_ALIKE, alike_laws=()):
     """``(right_law, right_site)`` of ``verdict`` for the hidden ``name`` (``LAW@SITE``).
 
-    The law is right when the verdict names it, at any site or everywhere;
+    The law is right when the verdict names it, at any site or everywhere,
+    or names it among the laws the recording could not tell apart
+    (``alike_laws``, the diagnosis's), at most two laws in all - as for sites;
     the site when the verdict's sites hold the true one and are at most two,
     or every one of them is alike to it (``cosines``, the truth model's, one
     per site of the law). The law everywhere is the law at all its sites.
     """
     law, _, site = name.partition("@")
-    named_law, at, named_sites = str(verdict).partition("@")
-    if named_law != law:
+    named = [str(verdict), *alike_laws]
+    if len({n.partition("@")[0] for n in named}) > 2:
         return False, False
+    matching = [n for n in named if n.partition("@")[0] == law]
+    if not matching:
+        return False, False
+    named_law, at, named_sites = matching[0].partition("@")
     sites = named_sites.split("+") if at else list(cosines)
     return True, site in sites and (len(sites) <= 2 or all(cosines.get(s, 0.0) >= alike for s in sites))
 
@@ -225,7 +231,7 @@ def _run_site_case(name, value, seed, workdir=None, keep=False, rig_name=None):
         return out
     finally:
         shutil.rmtree(workdir if own else folder, ignore_errors=True)
-    right_law, right_site = site_right(name, doc["verdict"], cosines)
+    right_law, right_site = site_right(name, doc["verdict"], cosines, alike_laws=doc.get("alike_laws", ()))
     hyp = {h["name"]: h for h in doc["hypotheses"]}
     top = hyp.get(doc["verdict"])
     fitted = top["parameters"][top["main_parameter"]] if top is not None else None
@@ -237,7 +243,7 @@ def _run_site_case(name, value, seed, workdir=None, keep=False, rig_name=None):
         within = right_law and (updated is None or abs(updated - 1.0) <= RIGHT_WITHIN)
     out.update(verdict=doc["verdict"], reason=doc["reason"], diagnosis_seconds=time.perf_counter() - t0,
                simulations=doc["timing"]["simulations"], right_law=right_law, right_site=right_site,
-               fitted=fitted, within=within,
+               fitted=fitted, within=within, alike_laws=doc.get("alike_laws", []),
                screened_in=_screened(doc, name), sites=doc.get("sites"))
     if keep:
         out["diagnosis"] = doc

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..simulate import assemble, damping_group_sites, default_maneuver, solve_statics
+from ..simulate import assemble, default_maneuver, rope_group_sites, solve_statics
 
 __all__ = ["MachinePicture", "machine_picture", "picture_at", "draw_machine", "marked_sites"]
 
@@ -34,7 +34,8 @@ class MachinePicture:
     rings : tuple of (str, ndarray (3,))
         Each ring's site name (``ring_sites``) and position (m).
     rope_groups : dict
-        Each damping group's name -> its ropes' names (the sites of a rope-type law).
+        Each rope group's name -> its ropes' names (the sites of a rope-type law: its damping's or its
+        stiffness's tolerance groups).
     """
 
     name: str
@@ -57,7 +58,16 @@ def picture_at(model, state, t=0.0):
     for seg, _, nodes in ropes:
         rings += [(site, nodes[j].copy()) for site, j in zip(model.rig.ropes[seg].ring_sites, model.ring_nodes(seg))]
     return MachinePicture(name=str(model.rig.name), ropes=ropes, bodies=bodies, fixed=model.fixed_positions(time)[0],
-                          rings=tuple(rings), rope_groups=dict(damping_group_sites(model.rig)))
+                          rings=tuple(rings), rope_groups=_rope_groups(model.rig))
+
+
+def _rope_groups(rig):
+    """Every rope group a rope-type law can name (its stiffness's and its damping's), name -> its ropes."""
+    groups = {}
+    for field_name in ("static_stiffness", "viscous_damping"):
+        for name, ropes in rope_group_sites(rig, field_name).items():
+            groups[name] = tuple(dict.fromkeys((*groups.get(name, ()), *ropes)))
+    return groups
 
 
 def machine_picture(rig, maneuver=None):

@@ -28,12 +28,12 @@ from ._modes import Modes, body_frequencies, linear_modes
 from ._physics import (
     MECHANISMS,
     Mechanism,
-    damping_group_sites,
     make_mechanism,
     mechanism_names,
     mechanism_sites,
     mechanism_type,
     parse_physics,
+    rope_group_sites,
 )
 from ._release import POSE_COORDINATES, unresolved_coordinates
 from ._rig import BUILT_IN_RIGS, DISCRETIZATION_LEVELS, Rig, load_rig, rig_from_dict

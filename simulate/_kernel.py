@@ -594,7 +594,8 @@ def dissipate(t, y, dt, m, work, geometry_fresh):
     """Implicit step of the dissipative mechanisms, after each step of either integrator (splitting).
 
     Joint moments (rope bending damping c, chain-link friction mu r T) and
-    ring friction (capstan, T_low (e^(mu beta) - 1)) are stiff on these light
+    ring friction (capstan, T_low (e^(mu beta) - 1), and a sheave bearing's
+    Coulomb friction, mu_b |T_B u_B - T_A u_A|) are stiff on these light
     ropes: explicitly they would need steps far below the axial-wave limit.
     Here they act as velocity impulses solved implicitly, one Gauss-Seidel
     sweep over the joints: with w the joint's inverse inertia to a bending
@@ -641,16 +642,18 @@ def dissipate(t, y, dt, m, work, geometry_fresh):
     if has_rings:
         ring_seg, ring_mu, ring_eA, ring_eB = m.ring_seg, m.ring_mu, m.ring_eA, m.ring_eB
         for rg in range(ring_seg.shape[0]):
-            if ring_mu[rg] == 0.0:
+            if ring_mu[rg] == 0.0 and m.ring_bearing_mu[rg] == 0.0:
                 continue
             s = ring_seg[rg]
             eA, eB = ring_eA[rg], ring_eB[rg]
-            # the capstan needs only the two elements that meet at the ring
+            # the capstan and the bearing need only the two elements that meet at the ring
             _dissipate_geometry(eA, y, m, work, o_F, o_ring)
             _dissipate_geometry(eB, y, m, work, o_F, o_ring)
             cosb = el_u[eA, 0] * el_u[eB, 0] + el_u[eA, 1] * el_u[eB, 1] + el_u[eA, 2] * el_u[eB, 2]
             beta = np.arccos(min(1.0, max(-1.0, cosb)))
             limit = min(el_T[eA], el_T[eB]) * (np.exp(ring_mu[rg] * beta) - 1.0)
+            if m.ring_bearing_mu[rg] != 0.0:
+                limit += m.ring_bearing_mu[rg] * _bearing_load(el_T[eA], el_T[eB], cosb)
             mass = seg_rho[s] * Lseg[s] / 3.0 + m.ring_added_mass[rg]
             i = o_ring + 2 * rg + 1
             vs = y[i]
@@ -658,6 +661,12 @@ def dissipate(t, y, dt, m, work, geometry_fresh):
                 y[i] = 0.0  # stick
             else:
                 y[i] = vs - np.sign(vs) * limit * dt / mass
+
+
+@njit(cache=True, inline="always")
+def _bearing_load(TA, TB, cosb):
+    """The load (N) on a ring's bearing: |T_B u_B - T_A u_A|, the two sides' pulls (cosb = u_A . u_B)."""
+    return np.sqrt(max(TA * TA + TB * TB - 2.0 * TA * TB * cosb, 0.0))
 
 
 @njit(cache=True, **NO_REFCOUNT)

@@ -183,7 +183,7 @@ KERNEL_FIELDS = (
     "body_cda", "seg_cda", "air_density",
     "has_joints", "joint_a", "joint_b", "joint_seg", "seg_bend_c", "seg_link_mu",
     "ring_eA", "ring_eB", "ring_mu", "has_ring_friction", "seg_link_r",
-    "ring_visc",
+    "ring_visc", "ring_bearing_mu",
     "el_na", "el_nb", "bnode_body", "bnode_arm",
     "part_accel_scale", "body_accel_scale", "body_lin_drag",
 )  # fmt: skip
@@ -384,6 +384,9 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         "has_ring_friction": 0,
         "seg_link_r": np.zeros(len(seg_names)),
         "ring_visc": np.zeros(len(ring_seg)),
+        # -: a Coulomb force ring_bearing_mu |bearing load| against the slide (the bearing's mu times its
+        # pin's radius over the sheave's)
+        "ring_bearing_mu": np.zeros(len(ring_seg)),
     }
     arrays.update(_node_map(arrays))
     model = Model(
@@ -403,7 +406,7 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
     for mechanism in physics:
         mechanism.apply(model)
     arrays["has_joints"] = int(np.any(arrays["seg_bend_c"] > 0) or np.any(arrays["seg_link_mu"] > 0))
-    arrays["has_ring_friction"] = int(np.any(arrays["ring_mu"] > 0))
+    arrays["has_ring_friction"] = int(np.any(arrays["ring_mu"] > 0) or np.any(arrays["ring_bearing_mu"] > 0))
     return model
 
 

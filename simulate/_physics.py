@@ -22,10 +22,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._mechanisms import MECHANISMS
-from ._mechanisms._base import damping_group_sites
+from ._mechanisms._base import rope_group_sites
 
 __all__ = ["Mechanism", "MECHANISMS", "parse_physics", "make_mechanism", "mechanism_names", "mechanism_type",
-           "mechanism_sites", "damping_group_sites", "limits_markdown"]
+           "mechanism_sites", "rope_group_sites", "limits_markdown"]
 
 
 @dataclass(frozen=True)
@@ -87,7 +87,7 @@ def mechanism_sites(rig, name):
     if kind.site == "body":
         return list(rig.bodies)
     if kind.site == "group":
-        return list(damping_group_sites(rig))
+        return list(rope_group_sites(rig, kind.rig_field))
     return []
 
 

@@ -2,7 +2,8 @@
 
 Joints first (rope bending damping, chain-link friction: one Gauss-Seidel
 sweep of implicit angular impulses, each joint reading the velocities the
-joints before it left), then ring friction (the capstan), as the kernel
+joints before it left), then ring friction (the capstan, a bearing's Coulomb
+friction in proportion to its load), as the kernel
 applies them. Each is applied here with its tangent, the primal arithmetic
 copied from the kernel operation for operation (the same bits), since each
 impulse's derivative needs the velocities it changes.
@@ -22,7 +23,8 @@ import math
 import numpy as np
 from numba import njit
 
-from ._kernel import KIND_BODY, KIND_PARTICLE, _dissipate_geometry, _joint_geometry, _kick, _node, _offsets, _turn
+from ._kernel import (KIND_BODY, KIND_PARTICLE, _bearing_load, _dissipate_geometry, _joint_geometry, _kick, _node,
+                      _offsets, _turn)
 
 __all__ = ["impulses_tangent"]
 
@@ -379,13 +381,14 @@ def _ring_friction(y, dY, h, m, dm, work, tw, o_F, o_ring):
     """``_kernel.dissipate``'s ring friction (its arithmetic), differentiated before it acts.
 
     A slipping ring's rate loses sign(v) limit h / mass, limit = min(T_A, T_B)
-    (e^(mu beta) - 1) with beta the angle the rope turns through; a stuck
-    ring's rate is zero whatever the parameters, so is its tangent.
+    (e^(mu beta) - 1) + mu_b |T_B u_B - T_A u_A| with beta the angle the rope
+    turns through; a stuck ring's rate is zero whatever the parameters, so is
+    its tangent.
     """
     Lseg, el_u, el_T = work.Lseg, work.el_u, work.el_T
     for rg in range(m.ring_seg.shape[0]):
-        mu = m.ring_mu[rg]
-        if mu == 0.0:
+        mu, mu_b = m.ring_mu[rg], m.ring_bearing_mu[rg]
+        if mu == 0.0 and mu_b == 0.0:
             continue
         s = m.ring_seg[rg]
         eA, eB = m.ring_eA[rg], m.ring_eB[rg]
@@ -395,6 +398,9 @@ def _ring_friction(y, dY, h, m, dm, work, tw, o_F, o_ring):
         beta = np.arccos(min(1.0, max(-1.0, cosb)))
         grow = np.exp(mu * beta)
         limit = min(el_T[eA], el_T[eB]) * (grow - 1.0)
+        load = _bearing_load(el_T[eA], el_T[eB], cosb)
+        if mu_b != 0.0:
+            limit += mu_b * load
         mass = m.seg_rho[s] * Lseg[s] / 3.0 + m.ring_added_mass[rg]
         i = o_ring + 2 * rg + 1
         vs = y[i]
@@ -413,6 +419,10 @@ def _ring_friction(y, dY, h, m, dm, work, tw, o_F, o_ring):
                     + el_u[eA, 0] * dbx + el_u[eA, 1] * dby + el_u[eA, 2] * dbz)
             dbeta = -dcos / math.sqrt(1.0 - cosb * cosb) if abs(cosb) < 1.0 else 0.0
             dlimit = dlow * (grow - 1.0) + low * grow * (dm.ring_mu[rg, k] * beta + mu * dbeta)
+            dlimit += dm.ring_bearing_mu[rg, k] * load
+            if mu_b != 0.0 and load > 0.0:
+                TA, TB = el_T[eA], el_T[eB]
+                dlimit += mu_b * (TA * dTA + TB * dTB - cosb * (dTA * TB + TA * dTB) - TA * TB * dcos) / load
             dmass = (dm.seg_rho[s, k] * Lseg[s] + m.seg_rho[s] * tw.dLseg[s, k]) / 3.0 + dm.ring_added_mass[rg, k]
             dY[i, k] -= sign * h * (dlimit / mass - limit * dmass / (mass * mass))
         y[i] = vs - np.sign(vs) * limit * h / mass

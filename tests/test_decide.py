@@ -16,6 +16,7 @@ from dragline.compare.diagnose._decide import (
     LEFTOVER_SHARE,
     MODEL_ERROR_FULL,
     MODEL_ERROR_SHARE,
+    alike_laws,
     decide,
     leftover_share,
     model_error_share,
@@ -106,6 +107,29 @@ def test_the_same_law_at_sites_the_data_cannot_tell_apart_is_named_with_them():
     # another law as close is still a rival the data cannot tell apart
     verdict, reason = decide([best, dict(rival, name="pulley_friction@head_sheave")], THRESHOLD, [], [])
     assert verdict == "unexplained" and "about equally well" in reason
+
+
+def test_another_law_with_the_same_signature_is_named_beside_the_best():
+    # Friction at the crane's three sheaves (a development run, 2026-11-29): the capstan everywhere and a
+    # bearing's friction at the three sheaves 28.4 apart, under the 200 noise alone gives.
+    best = _hypothesis("pulley_friction", 127901.4, 40.0, 2.0)
+    rival = _hypothesis("sheave_bearing_friction@block_sheave_1+head_sheave+block_sheave_2", 127873.0, 40.0, 2.0)
+    tie = {"lead": 28.4, "sd": 300.0, "t": 0.09, "critical": 2.33, "consistent": False}
+    alike = dict(best, leads={rival["name"]: dict(tie, cosine=0.995)})
+    verdict, reason = decide([alike, rival], THRESHOLD, [], [], noise_threshold=200.0)
+    assert verdict == "pulley_friction" and "cannot tell it from sheave_bearing_friction@" in reason
+    assert "cosine 0.995" in reason
+    assert alike_laws([alike, rival], THRESHOLD, 200.0) == [rival["name"]]
+    # the same tie between signatures the issue calls told apart (cosine below 0.9): not told apart, unexplained
+    apart = dict(best, leads={rival["name"]: dict(tie, cosine=0.85)})
+    verdict, reason = decide([apart, rival], THRESHOLD, [], [], noise_threshold=200.0)
+    assert verdict == "unexplained" and "about equally well" in reason
+    assert alike_laws([apart, rival], THRESHOLD, 200.0) == []
+    # a rival the best leads is no alike law, whatever its shape
+    led = dict(best, improvement=128901.4, leads={rival["name"]: dict(tie, lead=1028.4, t=3.4, consistent=True,
+                                                                      cosine=0.995)})
+    assert decide([led, rival], THRESHOLD, [], [], noise_threshold=200.0)[0] == "pulley_friction"
+    assert alike_laws([led, rival], THRESHOLD, 200.0) == []
 
 
 def test_a_lead_counts_when_it_beats_noise_and_what_the_residuals_random_part_could_give():

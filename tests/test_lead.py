@@ -100,6 +100,21 @@ def test_identical_residuals_lead_nowhere():
     assert test["lead"] == 0.0 and test["sd"] == 0.0 and not test["consistent"]
 
 
+def test_the_cosine_is_between_what_each_candidate_takes_off_the_base_residual():
+    # Two candidates taking the same shape off the base at different sizes are alike (cosine 1) whatever their
+    # lead; one taking the other channel's shape is not (cosine 0); the noise left in both does not enter.
+    noise = np.random.default_rng(8).normal(size=(TIME.size, 2))
+    shape = _signature()
+    other = shape[:, ::-1] * np.array([1.0, -1.0])  # the channels swapped: orthogonal over whole periods
+    base = noise + shape
+    tests = lead_tests(_problem(), {"a": noise, "b": noise + 0.3 * shape, "c": noise + shape - other},
+                       ["a", "b", "c"], base=base)
+    assert tests["a"]["b"]["cosine"] == pytest.approx(1.0, abs=1e-12)
+    expected = float(np.sum(shape * other) / (np.linalg.norm(shape) * np.linalg.norm(other)))
+    assert abs(expected) < 1e-3 and tests["a"]["c"]["cosine"] == pytest.approx(expected, abs=1e-12)
+    assert "cosine" not in lead_tests(_problem(), {"a": noise, "b": base}, ["a", "b"])["a"]["b"]
+
+
 def test_the_held_out_residual_sums_to_the_held_out_score():
     rng = np.random.default_rng(8)
     measured = rng.normal(size=(TIME.size, 2)) + _signature()

@@ -29,12 +29,17 @@ that law can be derived by hand, with the ropes as pure springs
   * capstan friction, at most T (e^(mu beta) - 1) across the ring (beta the
     angle the rope turns through), is a Coulomb force: linear envelope
     losing 4 T (e^(mu beta) - 1) / E'' per cycle, then the slide sticks;
+  * a sheave bearing's Coulomb friction is mu_b (r_pin / r) times the
+    bearing's load, the two sides' pulls added as vectors, 2 T sin(beta / 2):
+    linear envelope losing 4 mu_b (r_pin / r) 2 T sin(beta / 2) / E'' per
+    cycle, which grows with the turn as a chord, not as the capstan's arc;
 - a point-like body hanging on a stiff massless rope (a simple pendulum) in
   quadratic drag 0.5 rho cd A |v| v, whose swing must follow the pendulum's
   drag ODE, integrated here independently; in linear drag c v its swing
   decays as exp(-c t / 2m);
-- a rope type's damping beyond its tolerance is the rig file with that
-  damping (the law continues a rig value, so its signature is that value's).
+- a rope type's damping or stiffness beyond its tolerance is the rig file
+  with that damping or stiffness (the law continues a rig value, so its
+  signature is that value's).
 
 Rope and chain properties are the built-in 1/16-scale rig's (Table 2).
 Where the model misses the textbook behaviour the test is a strict xfail
@@ -61,8 +66,11 @@ SIGNATURE_TESTS = {
     "pulley_inertia": "test_pulley_inertia_lowers_the_slide_frequency_by_the_added_mass_without_decay",
     "aero_drag": "test_aero_drag_on_a_body_follows_the_quadratic_drag_pendulum",
     "sheave_bearing_damping": "test_sheave_bearing_damping_decays_the_slide_exponentially_at_c_over_r2",
+    "sheave_bearing_friction": "test_sheave_bearing_friction_decays_the_slide_linearly_by_its_load",
     "linear_drag": "test_linear_drag_decays_a_pendulums_swing_at_c_over_2m",
     "rope_damping_excess": "test_a_rope_types_damping_excess_is_the_rig_file_with_that_damping",
+    "rope_stiffness_excess": "test_a_rope_types_stiffness_error_is_the_rig_file_with_that_stiffness",
+    "rope_stiffness_deficit": "test_a_rope_types_stiffness_error_is_the_rig_file_with_that_stiffness",
 }
 
 
@@ -281,6 +289,22 @@ def test_pulley_friction_decays_the_slide_linearly_by_the_capstan_limit(rig):
     assert abs(u[stick]) <= decrement / 4  # inside the dead band F / k
 
 
+@pytest.mark.parametrize("turn, mu", [(0.25, 0.16), (2.5, 0.02)])
+def test_sheave_bearing_friction_decays_the_slide_linearly_by_its_load(rig, turn, mu):
+    # mu r_pin / r |N| about 0.01 T0 at both turns, so the limit stays nearly constant over a cycle; between them
+    # the load grows as the chord 2 sin(beta / 2) (x 7.6), where a capstan's arc would grow x 10
+    ratio = 0.25
+    props = _properties(rig, "hoist_rope")
+    ring, model, rest, (_, _, T0, stiffness, _) = _ring(props, turn=turn)
+    decrement = 4.0 * mu * ratio * 2.0 * T0 * np.sin(turn / 2) / stiffness  # m of slide lost per cycle
+    t, u, v = _slide(ring, model, rest, f"sheave_bearing_friction:mu={mu},ratio={ratio}", 6 * decrement, 0.05)
+    stick = np.flatnonzero(v != 0.0)[-1] + 1
+    env = envelope_shape(u[: stick + 1], t[: stick + 1])
+    assert env["shape"] == "linear" and env["confidence"] > 0.99, env["models"]
+    assert env["models"]["linear"]["decrement_per_cycle"] == pytest.approx(decrement, rel=0.05)
+    assert t[stick] < t[-1] - 0.02  # the slide stops and stays stopped
+
+
 @pytest.mark.xfail(strict=True, reason=(
     "a stuck ring slide creeps: its speed reads exactly 0 but u_A relaxes to the frictionless rest "
     "(stuck 18 um = 0.19 F/k off it, 0.06 um left 40 ms later) with time constant 2 / (dt w^2) "
@@ -380,6 +404,28 @@ def test_a_rope_types_damping_excess_is_the_rig_file_with_that_damping(rig):
     moved = by_law["seg_relax"] != nominal["seg_relax"]
     names = assemble(rig, man).seg_names
     assert sorted(n for n, m in zip(names, moved) if m) == ["drag_rope", "hoist_rope"]
+
+
+@pytest.mark.parametrize("law, value, factor", [("rope_stiffness_excess", 1.5, 2.5),
+                                                ("rope_stiffness_deficit", 1.5, 1 / 2.5)])
+def test_a_rope_types_stiffness_error_is_the_rig_file_with_that_stiffness(rig, law, value, factor):
+    # LAW@GROUP says the rig file's static stiffness of a tolerance group is wrong, stiffer or softer: the model
+    # with it is the model of the rig file whose group's ropes have that stiffness, and no other rope's changed.
+    import dataclasses
+
+    from dragline.simulate import assemble, make_mechanism, mechanism_sites, mechanism_type
+
+    man = Maneuver([0.0], {"hoist": [8.6], "drag": [4.2]})
+    assert mechanism_sites(rig, law) == ["wire_rope", "dump_rope", "chain"]
+    group = ("hoist_rope", "drag_rope")  # the rig file's wire_rope stiffness tolerance group
+    written = dataclasses.replace(rig, ropes={
+        name: dataclasses.replace(spec, static_stiffness=spec.static_stiffness * factor) if name in group else spec
+        for name, spec in rig.ropes.items()})
+    by_law = assemble(rig, man, physics=[make_mechanism(f"{law}@wire_rope", **{mechanism_type(law).main: value})])
+    by_file = assemble(written, man)
+    np.testing.assert_allclose(by_law.arrays["seg_ks"], by_file.arrays["seg_ks"], rtol=1e-12)
+    moved = by_law.arrays["seg_ks"] != assemble(rig, man).arrays["seg_ks"]
+    assert sorted(n for n, m in zip(by_law.seg_names, moved) if m) == sorted(group)
 
 
 def test_every_mechanism_has_a_signature_test():

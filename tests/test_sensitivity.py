@@ -261,15 +261,20 @@ def _state_direction(result, start, seed):
     return np.random.default_rng(seed).normal(size=y.shape) * (np.abs(y) * 1e-5 + 1e-7)
 
 
-def test_ring_friction_while_the_rope_slips_matches_central_differences():
-    """The capstan impulse of a slipping ring, along its friction coefficient, its sheave's inertia, the rope's
-    stiffness and the state: over five record intervals of the dig in which both of the dragline's rings slip."""
+@pytest.mark.parametrize("mechanism, value, field", [
+    ("pulley_friction", {"mu": 0.02}, "ring_mu"),
+    ("sheave_bearing_friction", {"mu": 0.08}, "ring_bearing_mu"),
+])
+def test_ring_friction_while_the_rope_slips_matches_central_differences(mechanism, value, field):
+    """The impulse of a slipping ring (the capstan; a bearing's friction in proportion to its load), along its
+    friction coefficient, its sheave's inertia, the rope's stiffness and the state: over five record intervals of
+    the dig in which both of the dragline's rings slip."""
     result = simulate(load_rig("dragline"), duration=3.0, rate_hz=RATE_HZ,
-                      physics=(make_mechanism("pulley_friction", mu=0.02),))
+                      physics=(make_mechanism(mechanism, **value),))
     model = result.model
     rates = np.abs(result.states[:, model.o_ring + 1 + 2 * np.arange(model.n_rings)]).min(axis=1)
     start = next(i for i in range(len(rates) - 6) if np.all(rates[i:i + 6] > 2e-3))
-    _check_window(result, start, 5, {"ring_mu": np.full(model.n_rings, 0.01),
+    _check_window(result, start, 5, {field: np.full(model.n_rings, 0.01),
                                      "ring_added_mass": np.full(model.n_rings, 1e-3),
                                      "seg_ks": 0.1 * np.asarray(model.arrays["seg_ks"], float),
                                      "state": _state_direction(result, start, 8)})
@@ -303,7 +308,8 @@ def test_a_moving_release_is_refused_not_differentiated_wrongly():
 
 
 @pytest.mark.parametrize("rig_name, physics", [
-    ("dragline", (("chain_link_friction", {"mu": 0.2}), ("pulley_friction", {"mu": 0.02}))),
+    ("dragline", (("chain_link_friction", {"mu": 0.2}), ("pulley_friction", {"mu": 0.02}),
+                  ("sheave_bearing_friction", {"mu": 0.04}))),
     ("gantry_crane", ()),
 ])
 def test_the_runs_that_carry_tangents_are_simulates_runs_to_the_bit(rig_name, physics):

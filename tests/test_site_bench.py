@@ -51,6 +51,21 @@ def test_the_right_site_is_the_true_one_or_a_small_set_holding_it():
     assert site_right("chain_link_friction@a", "chain_link_friction@a+b+d", chains) == (True, False)
 
 
+def test_a_law_named_among_those_the_recording_could_not_tell_apart_is_right_with_its_own_sites():
+    cos = {"boom": 1.0, "hoist_cluster": -0.2}
+    name = "sheave_bearing_friction@boom"
+    # named beside the capstan it could not be told from: the law right, its site from its own candidate
+    assert site_right(name, "pulley_friction@hoist_cluster", cos,
+                      alike_laws=["sheave_bearing_friction@boom"]) == (True, True)
+    assert site_right(name, "pulley_friction@boom", cos,
+                      alike_laws=["sheave_bearing_friction@hoist_cluster"]) == (True, False)
+    # three laws are no answer, as three sites are not
+    assert site_right(name, "pulley_friction@boom", cos,
+                      alike_laws=["sheave_bearing_friction@boom", "pulley_inertia@boom"]) == (False, False)
+    # an alike law that is not the truth's does not make the verdict's law right
+    assert site_right(name, "pulley_friction@boom", cos, alike_laws=["pulley_inertia@boom"]) == (False, False)
+
+
 def test_the_screen_is_read_for_the_candidate_holding_the_true_site():
     doc = {"site_screen": [{"name": "aero_drag@spreader_bar+hoist_cluster", "improvement": 5.0, "fitted": True},
                            {"name": "aero_drag@bucket", "improvement": 0.5, "fitted": False},

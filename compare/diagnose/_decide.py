@@ -9,9 +9,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ._band import RESOLVED_HZ, RESOLVED_MIN, significance
+from ._sites import SITES_ALIKE
 from ._updating import BOUND_TOLERANCES
 
-__all__ = ["decide", "DecisionRules", "verdict_of_document", "rethresholded", "leftover_share", "model_error_share",
+__all__ = ["decide", "alike_laws", "DecisionRules", "verdict_of_document", "rethresholded", "leftover_share", "model_error_share",
            "EXPLAINED_MIN", "ADEQUATE_RMS", "LEFTOVER_SHARE",
            "CONFOUNDED", "MODEL_ERROR_SHARE", "MODEL_ERROR_FULL", "DIFFERENT_RIG", "offsets_too_far"]
 
@@ -199,7 +200,11 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
        best's ``leads``): "unexplained" (indistinguishable). A rival at an
        end of its range is no rival; nor is the best's own law at other
        sites (``law@sites``): the law is named, and the reason says which
-       site sets it could not be told from.
+       site sets it could not be told from; nor another law whose signature
+       on the held-out data is the best's (cosine at least ``SITES_ALIKE``,
+       the lead test's ``cosine``; ``alike_laws``): the recording cannot tell
+       the two laws apart, as it cannot tell sites apart, and the reason
+       says so.
     4b. The best candidate's signature correlates with a rig parameter's
        sensitivity beyond ``CONFOUNDED`` and that parameter could make it
        within ``BOUND_TOLERANCES`` of its tolerance (the updating's own
@@ -270,13 +275,14 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
     # parameters (a hidden sheave inertia's rival, chain-link friction, sat
     # at its lower end within the noise threshold of the right one).
     noise = threshold if noise_threshold is None else noise_threshold
-    # The same law at other sites is no rival law: the law is told, the sites it ties with are said (issue 39).
-    same_law = []
+    # The same law at other sites is no rival law: the law is told, the sites it ties with are said (issue 39);
+    # another law with the best's signature is said too: the recording cannot tell the two apart.
+    same_law, alike = [], alike_laws(hypotheses, threshold, noise_threshold)
     for rival in (h for h in sig[1:] if not h["at_bound"]):
         why = _no_lead(best, rival, noise)
         if why and _law(rival["name"]) == _law(best["name"]):
             same_law.append(rival["name"])
-        elif why:
+        elif why and rival["name"] not in alike:
             return "unexplained", (f"{best['name']} and {rival['name']} explain the mismatch about equally well "
                                    f"(held-out improvements {best['improvement']:.1f} and "
                                    f"{rival['improvement']:.1f}: {why}); the data cannot tell them apart")
@@ -307,7 +313,24 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
     if same_law:
         reason += (f"; the recording cannot tell its sites from those of {', '.join(same_law)} (the same law, "
                    "about equally good)")
+    if alike:
+        cosines = ", ".join(f"{name} (cosine {best['leads'][name]['cosine']:.3f})" for name in alike)
+        reason += (f"; the recording cannot tell it from {cosines}: another law, about equally good, whose "
+                   "signature is its own")
     return best["name"], reason
+
+
+def alike_laws(hypotheses, threshold, noise_threshold=None):
+    """Significant rivals of another law, inside their ranges, that the best does not lead and whose signature
+    on the held-out data it shares (cosine at least ``SITES_ALIKE``): the laws the recording cannot tell from the
+    best's (rule 4)."""
+    sig = [h for h in hypotheses if h.get("significant")]
+    if not sig:
+        return []
+    best, noise = sig[0], threshold if noise_threshold is None else noise_threshold
+    return [rival["name"] for rival in sig[1:]
+            if not rival["at_bound"] and _law(rival["name"]) != _law(best["name"]) and _no_lead(best, rival, noise)
+            and (best.get("leads") or {}).get(rival["name"], {}).get("cosine", 0.0) >= SITES_ALIKE]
 
 
 def _law(name):

@@ -253,6 +253,7 @@ def diagnosis_of(state):
         "schema": SCHEMA,
         "verdict": state.verdict,
         "reason": state.reason,
+        "alike_laws": list(state.alike_laws),
         "mismatch": [e for e in state.located_nominal if e["significant"]][:MAX_MISMATCH_ENTRIES],
         "mismatch_updated": state.structured_before[:MAX_MISMATCH_ENTRIES],
         "calibration": calibration_doc(update, state.joints, state.nominal_ctx, state.after_name),

@@ -44,8 +44,10 @@ __all__ = ["lead_tests", "ENVELOPE_S"]
 ENVELOPE_S = 2 * BLOCK_S
 
 
-def lead_tests(problem, residuals, order, seed=0, quantile=NULL_QUANTILE, n_surrogates=NULL_SURROGATES):
-    """Each candidate's lead over every one behind it in ``order``.
+def lead_tests(problem, residuals, order, seed=0, quantile=NULL_QUANTILE, n_surrogates=NULL_SURROGATES,
+               base=None):
+    """Each candidate's lead over every one behind it in ``order``, and how alike the two candidates' signatures
+    are.
 
     Parameters
     ----------
@@ -57,6 +59,9 @@ def lead_tests(problem, residuals, order, seed=0, quantile=NULL_QUANTILE, n_surr
     seed : int
     quantile : float
         One-sided level of each test.
+    base : ndarray (n, c), optional
+        The held-out residual without any candidate: each candidate's
+        signature is what it takes off it.
 
     Returns
     -------
@@ -64,10 +69,13 @@ def lead_tests(problem, residuals, order, seed=0, quantile=NULL_QUANTILE, n_surr
         Name -> {rival name -> test}; a test has ``lead`` (the rival's
         held-out chi2 minus the lead's), ``sd`` (the lead's spread under the
         residual's random part), ``t`` (lead / sd), ``critical`` (the normal
-        quantile) and ``consistent`` (``t`` beyond ``critical``).
+        quantile), ``consistent`` (``t`` beyond ``critical``) and, with
+        ``base``, ``cosine`` (between the two candidates' weighted signatures:
+        what each takes off ``base``).
     """
     critical = float(stats.norm.ppf(quantile))
     weighted = {name: _weighted_signal(problem, residuals[name]) for name in order}
+    below = None if base is None else _weighted_signal(problem, base)
     out = {}
     for k, name in enumerate(order):
         behind = order[k + 1:]
@@ -84,7 +92,14 @@ def lead_tests(problem, residuals, order, seed=0, quantile=NULL_QUANTILE, n_surr
             t = lead / sd if sd > 0 else (math.inf if lead > 0 else 0.0)
             out[name][other] = {"lead": lead, "sd": sd, "t": float(t), "critical": critical,
                                 "consistent": bool(t > critical)}
+            if below is not None:
+                out[name][other]["cosine"] = _cosine(below - z, below - weighted[other])
     return out
+
+
+def _cosine(a, b):
+    norm = float(np.linalg.norm(a) * np.linalg.norm(b))
+    return float(np.sum(a * b) / norm) if norm > 0 else 0.0
 
 
 def _surrogate_projections(z, directions, dt, seed, n_surrogates):

@@ -161,6 +161,7 @@ class DiagnosisState:
     offsets_note: str | None = None
     verdict: str | None = None
     reason: str = ""
+    alike_laws: tuple = ()
     second: dict | None = None
     # predict_held_out
     predictions: list = field(default_factory=list)

@@ -33,7 +33,7 @@ from ...simulate import make_mechanism, simulate
 from .._align import MAX_OFFSET, check_table, maneuver_stop_time, reels_stop_time
 from .._compare import channel_kind
 from ._band import band_improvement, significance
-from ._decide import DIFFERENT_RIG, decide, leftover_share, model_error_share, offsets_too_far
+from ._decide import DIFFERENT_RIG, alike_laws, decide, leftover_share, model_error_share, offsets_too_far
 from ._hypotheses import (
     REFINE_XATOL,
     Problem,
@@ -664,7 +664,8 @@ def score_hypotheses(state):
     hypotheses.sort(key=lambda h: -h["improvement"])
     # Each candidate's lead over every one behind it, against what noise and model error could give (``_lead``).
     held = {h["name"]: problem.held_out_residual(*state.scored[h["name"]]["fold_sims"]) for h in hypotheses}
-    leads = lead_tests(problem, held, [h["name"] for h in hypotheses], seed=state.seed)
+    leads = lead_tests(problem, held, [h["name"] for h in hypotheses], seed=state.seed,
+                       base=problem.held_out_residual(state.base_sim, state.base_sim))
     for h in hypotheses:
         h["leads"] = leads[h["name"]]
     for k, h in enumerate(sorted(hypotheses, key=lambda h: -h["signature_match"])):
@@ -842,7 +843,10 @@ def decide_verdict(state):
         reason += (f"; updating had stopped short: {first['lead']}'s joint rig fitted better without it, so "
                    f"updating was taken up again from there (chi2 {first['chi2_updated']:.4g} -> "
                    f"{first['chi2_updated_again']:.4g}) and every candidate fitted anew on that rig")
-    return replace(state, verdict=verdict, reason=reason)
+    significant = [h for h in state.hypotheses if h.get("significant")]
+    named = bool(significant) and verdict == significant[0]["name"]
+    alike = alike_laws(state.hypotheses, state.null.threshold, state.null.noise_threshold) if named else []
+    return replace(state, verdict=verdict, reason=reason, alike_laws=tuple(alike))
 
 
 def test_second_mechanism(state):

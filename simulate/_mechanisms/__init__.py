@@ -13,10 +13,14 @@ from ._pulley_friction import PulleyFriction
 from ._pulley_inertia import PulleyInertia
 from ._rope_bending_damping import RopeBendingDamping
 from ._rope_damping_excess import RopeDampingExcess
+from ._rope_stiffness_deficit import RopeStiffnessDeficit
+from ._rope_stiffness_excess import RopeStiffnessExcess
 from ._sheave_bearing_damping import SheaveBearingDamping
+from ._sheave_bearing_friction import SheaveBearingFriction
 
 __all__ = ["MECHANISMS", "MechanismType"]
 
 MECHANISMS = {kind.name: kind for kind in (ChainLinkFriction(), LinearDrag(), PulleyFriction(), PulleyInertia(),
-                                           RopeBendingDamping(), RopeDampingExcess(), SheaveBearingDamping(),
+                                           RopeBendingDamping(), RopeDampingExcess(), RopeStiffnessExcess(),
+                                           RopeStiffnessDeficit(), SheaveBearingDamping(), SheaveBearingFriction(),
                                            AeroDrag())}

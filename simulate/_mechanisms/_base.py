@@ -129,21 +129,22 @@ def segments(model, which, default_kind):
     raise ValueError(f"unknown segments {which!r} (ropes, chains, all, or a segment name)")
 
 
-def damping_group_sites(rig):
-    """A rig's damping groups, name -> its ropes: each tolerance group (or rope) whose material damping has a
-    tolerance, then each rope in none of them on its own, in the rig file's order."""
-    groups = {p.name.split(".")[1]: tuple(p.targets) for p in rig.tolerances if p.field == "viscous_damping"}
+def rope_group_sites(rig, field="viscous_damping"):
+    """A rig's rope groups for one rope property, name -> its ropes: each tolerance group (or rope) whose
+    ``field`` (``viscous_damping``, ``static_stiffness``) has a tolerance, then each rope in none of them on its
+    own, in the rig file's order."""
+    groups = {p.name.split(".")[1]: tuple(p.targets) for p in rig.tolerances if p.field == field}
     covered = {seg for targets in groups.values() for seg in targets}
     groups.update({seg: (seg,) for seg in rig.ropes if seg not in covered})
     return groups
 
 
-def damping_groups(model, which):
-    """Segments a rope-type mechanism acts on: ``all``, a damping group's (``damping_group_sites``) or one rope's,
-    or several joined by ``+``."""
+def rope_groups(model, which, field):
+    """Segments a rope-type mechanism acts on: ``all``, a rope group's (``rope_group_sites`` of ``field``) or one
+    rope's, or several joined by ``+``."""
     if which == "all":
         return list(range(len(model.seg_names)))
-    groups = damping_group_sites(model.rig)
+    groups = rope_group_sites(model.rig, field)
     found = set()
     for part in which.split("+"):
         targets = groups.get(part, (part,) if part in model.seg_names else None)

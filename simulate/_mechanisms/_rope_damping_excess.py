@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._base import MechanismType, damping_groups
+from ._base import MechanismType, rope_groups
 
 
 class RopeDampingExcess(MechanismType):
@@ -26,5 +26,5 @@ class RopeDampingExcess(MechanismType):
 
     def apply(self, model, parameters):
         # Kelvin-Maxwell rope (kernel): the branch relaxes at Kv / Cv; more damping, slower relaxation.
-        for s in damping_groups(model, parameters["group"]):
+        for s in rope_groups(model, parameters["group"], self.rig_field):
             model.arrays[self.rig_array][s] /= 1.0 + parameters["excess"]
