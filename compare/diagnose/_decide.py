@@ -12,8 +12,8 @@ from ._band import RESOLVED_HZ, RESOLVED_MIN, significance
 from ._sites import SITES_ALIKE
 from ._updating import BOUND_TOLERANCES
 
-__all__ = ["decide", "alike_laws", "DecisionRules", "verdict_of_document", "rethresholded", "leftover_share", "model_error_share",
-           "EXPLAINED_MIN", "ADEQUATE_RMS", "LEFTOVER_SHARE",
+__all__ = ["decide", "alike_laws", "DecisionRules", "verdict_of_document", "rethresholded", "leftover_share",
+           "model_error_share", "EXPLAINED_MIN", "ADEQUATE_RMS", "LEFTOVER_SHARE",
            "CONFOUNDED", "MODEL_ERROR_SHARE", "MODEL_ERROR_FULL", "DIFFERENT_RIG", "offsets_too_far"]
 
 # A structured mismatch left: the best must explain this share of it.
