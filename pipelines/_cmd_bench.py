@@ -38,7 +38,9 @@ def add_parser(sub):
                         "the another-rig rule's factor from above and below")
     p.add_argument("--candidates", metavar="NAME,...",
                    help="detection: the candidates whose thresholds are sought (a law, or a law at a site, "
-                        "LAW@SITE; default every candidate)")
+                        "LAW@SITE; default every candidate); discovery --realism: what every case's diagnosis "
+                        "tries (default,*@*: every law at each of its sites too; an out-of-menu effect named as "
+                        "the generic law that models it is then right)")
     p.add_argument("--rig", metavar="NAME", help="discovery --realism: another built-in machine's cases "
                                                   "(pendulum, slung_load, gantry_crane; with --sites "
                                                   "hook_block_crane; default the dragline); detection: the "

@@ -202,3 +202,30 @@ def test_the_held_out_trials_figures_count_which_model_predicts_it_best_per_kind
     assert out["none_or_unexplained"]["n"] == 2 and out["none_or_unexplained"]["updated_beats_nominal"] == 1
     assert out["none_or_unexplained"]["median_rms"]["named"] is None
     assert _held_out_figures([{"verdict": "none", "right": True}]) is None
+
+
+def test_an_out_of_menu_effect_named_as_its_generic_law_is_modeled_and_no_false_name():
+    # asked where (default,*@*), a sheave's bearing damping hidden everywhere may be named as that law at its
+    # rings, and every rope's material damping as a rope type's damping beyond its tolerance: right, and counted
+    # as modeled; any other law named on such a case, or on one with nothing added, is a false name
+    from dragline.benchmarks._discovery import _realistic_figures, modeled, verdict_right
+
+    assert modeled("sheave_bearing_damping", "sheave_bearing_damping@boom+hoist_cluster")
+    assert modeled("material_damping", "rope_damping_excess@wire_rope")
+    assert not modeled("material_damping", "rope_bending_damping@dump_rope")
+    assert not modeled("none", "sheave_bearing_damping@boom")
+    assert verdict_right("sheave_bearing_damping", 3e-3, True, "sheave_bearing_damping@boom")
+    assert not verdict_right("sheave_bearing_damping", 3e-3, True, "pulley_friction@boom")
+    results = [
+        {"truth": "sheave_bearing_damping", "out_of_menu": True, "verdict": "sheave_bearing_damping@boom",
+         "modeled": True, "right": True},
+        {"truth": "material_damping", "out_of_menu": True, "verdict": "rope_bending_damping@dump_rope",
+         "modeled": False, "right": False},
+        {"truth": "material_damping", "out_of_menu": True, "verdict": "none", "modeled": False, "right": True},
+        {"truth": "none", "out_of_menu": False, "verdict": "aero_drag@bucket", "right": False},
+        {"truth": "none", "out_of_menu": False, "verdict": "none", "right": True},
+    ]
+    figures = _realistic_figures(results)
+    assert figures["false_names"] == 2 and figures["n_false_name_chances"] == 5  # a law at a site is a name
+    assert figures["none_named_a_mechanism"] == 1 and figures["out_of_menu_modeled"] == 1
+    assert figures["out_of_menu_wrong_name_rate"] == pytest.approx(1 / 3)
