@@ -36,4 +36,9 @@ class RopeStiffnessExcess(MechanismType):
 
     def apply(self, model, parameters):
         for s in rope_groups(model, parameters["group"], self.rig_field):
-            model.arrays[self.rig_array][s] *= 1.0 + parameters["excess"]
+            model.arrays[self.rig_array][s] *= self.factor(parameters[self.main])
+
+    @staticmethod
+    def factor(value):
+        """The rig file's stiffness multiplied by this (-)."""
+        return 1.0 + value
