@@ -216,7 +216,7 @@ def test_a_held_out_trials_own_start_and_cable_ends_are_fitted_on_its_first_swin
         return float(np.sqrt(np.mean((e / noise) ** 2)))
 
     free = np.ones(len(channels), bool)
-    fitted = _conditioned(aligned, box, maneuver, [], "baseline", free, None)
+    fitted = _conditioned(aligned, window, box, maneuver, [], "baseline", free, None)
     # the reference: the model told the cable's true end, started where the recording's first samples put it;
     # fitted on the first swing alone (the end and the start), the rest of the trial is followed at least as
     # well (measured 1.6 against 2.5 noise units), and without the fit worse (4.8)

@@ -72,11 +72,10 @@ def conditioning_window(aligned):
     return float(max(windows)) if windows else 0.1 * float(ctx["duration"])
 
 
-def _conditioned(aligned, rig, maneuver, physics, discretization, offset_free, statics_guess):
-    """``(rig, maneuver)`` with the trial's own parameters fitted on its conditioning window (least squares in
-    noise units, each parameter's tolerance as its prior), for one model."""
+def _conditioned(aligned, window, rig, maneuver, physics, discretization, offset_free, statics_guess):
+    """``(rig, maneuver)`` with the trial's own parameters fitted on its first ``window`` s (its conditioning
+    window: least squares in noise units, each parameter's tolerance as its prior), for one model."""
     own = own_parameters(aligned)
-    window = conditioning_window(aligned)
     ctx = aligned["ctx"]
     time = np.asarray(aligned["time"], float)
     rows = time <= time[0] + window
@@ -138,7 +137,7 @@ def held_out_entry(state, name, aligned, maneuver):
             named = physics[0].name
         try:
             if window > 0:
-                rig, man = _conditioned(aligned, rig, man, physics, state.discretization, offset_free, guess)
+                rig, man = _conditioned(aligned, window, rig, man, physics, state.discretization, offset_free, guess)
             run = simulate(rig, man, state.discretization, physics, duration=ctx["duration"], rate_hz=ctx["rate_hz"],
                            statics_guess=guess)
         except (SimulationError, StaticsError, FloatingPointError):
