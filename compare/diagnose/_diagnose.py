@@ -268,6 +268,7 @@ def diagnosis_of(state):
         "skipped": state.skipped,
         "sites": state.site_groups,
         "site_screen": state.site_screen,
+        "site_split": state.site_split,
         "free_decay": decay,
         "metrics": metrics,
         "null_test": {"threshold": null.threshold, "noise_threshold": null.noise_threshold,

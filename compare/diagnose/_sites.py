@@ -21,6 +21,15 @@ no parameter change does. Sites below ``SCREEN_SHARE`` of the best are not
 fitted; their signatures still enter the null test, whose threshold is the
 largest improvement over every candidate tried (the multiple-testing cost
 of many sites).
+
+A joined set is fitted with one coefficient at all its members, and the
+law everywhere with one at every site: friction at one sheave of three
+alike ones is then stood in for by friction spread over the three, by
+whichever law spreads it best. Once the fits have found a lead acting at
+several sites, ``sets_to_split`` lists it, and the laws whose fitted
+signatures it shares, each at every member alone (one nonlinear fit per
+member): sites alike at the bottom of a law's range may differ at the
+size the recording asks for.
 """
 
 from __future__ import annotations
@@ -31,7 +40,8 @@ from ...simulate import assemble, make_mechanism, mechanism_sites
 from ._hypotheses import REFINE_FRACTION, _grid_job, _pool, _weighted_signal
 from ._trials import first_maneuver
 
-__all__ = ["join_alike_sites", "alike_groups", "drop_law_twins", "screen_sites", "SITES_ALIKE", "SCREEN_SHARE"]
+__all__ = ["join_alike_sites", "alike_groups", "drop_law_twins", "screen_sites", "sets_to_split", "SITES_ALIKE",
+           "SCREEN_SHARE", "SPLIT_MAX_SITES"]
 
 # Issue 39's definition: two sites whose signatures' cosine is below this are told apart.
 SITES_ALIKE = 0.9
@@ -39,6 +49,9 @@ SITES_ALIKE = 0.9
 # which a candidate's grid fit is not refined either (a cost rule; the site benchmark reports how often the
 # true site passed it).
 SCREEN_SHARE = REFINE_FRACTION
+# A set is split into its members when it has at most this many: each member costs a candidate's fit (a grid
+# and a refinement, about 13 simulations), and the laws a dragline or crane asks where have 2-6 sites of a kind.
+SPLIT_MAX_SITES = 6
 
 
 def _shape(problem, signature):
@@ -243,3 +256,47 @@ def _span(J, rcond=1e-10):
         return J
     u, sv, _ = np.linalg.svd(J, full_matrices=False)
     return u[:, sv > rcond * sv[0]] if sv[0] > 0 else u[:, :0]
+
+
+def sets_to_split(problem, rig, leading, signatures, site_laws, alike=SITES_ALIKE, max_sites=SPLIT_MAX_SITES):
+    """The candidates acting at several sites to be fitted at each member alone: the lead and the laws alike to it.
+
+    Parameters
+    ----------
+    problem : Problem
+    rig : Rig
+    leading : list of str
+        Fitted candidates' names, the lead first.
+    signatures : dict
+        Name -> its fitted signature (n, c): the fitted simulation less the model without it.
+    site_laws : collection of str
+        The laws asked where (``LAW@*``): only theirs are split.
+
+    Returns
+    -------
+    dict
+        Each candidate to split (the lead first, then laws whose signature's cosine with the lead's reaches
+        ``alike``) -> the names of its members, ``LAW@SITE``. A set with more than ``max_sites`` members, a law
+        not asked where and a single site are left out.
+    """
+    if not leading:
+        return {}
+    shapes = {n: _shape(problem, signatures[n]) for n in leading}
+    lead = shapes[leading[0]]
+    out = {}
+    for name in leading:
+        law, at, sites = name.partition("@")
+        if law not in site_laws:
+            continue
+        members = sites.split("+") if at else list(mechanism_sites(rig, law))
+        if not 2 <= len(members) <= max_sites:
+            continue
+        if name != leading[0] and _cosine(lead, shapes[name]) < alike:
+            continue
+        out[name] = [f"{law}@{s}" for s in members]
+    return out
+
+
+def _cosine(a, b):
+    na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+    return float(a @ b) / (na * nb) if na > 0 and nb > 0 else 0.0

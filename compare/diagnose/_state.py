@@ -140,6 +140,7 @@ class DiagnosisState:
     site_groups: list = field(default_factory=list)  # per law tried at its sites: which the recording joins
     site_screen: list = field(default_factory=list)  # per site candidate: its linearized improvement, fitted or not
     screened_out: list = field(default_factory=list)  # the signatures of the sites not fitted (for the null test)
+    site_split: list = field(default_factory=list)  # the sets fitted at each member alone (``split_joined_sites``)
     points: dict = field(default_factory=dict)
     scored: dict = field(default_factory=dict)
     joints: dict = field(default_factory=dict)

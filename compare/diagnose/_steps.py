@@ -11,6 +11,9 @@
 5. ``fit_mechanisms``: each candidate fitted on top of the updated model;
 6. ``refit_jointly``: the leading candidates refitted with the parameters;
 7. ``test_against_noise``: the threshold noise and the model's error set;
+   ``refit_rivals``: the lead's close rivals refitted jointly too;
+   ``split_joined_sites``: a lead acting at several sites, and the laws
+   alike to it, fitted at each site alone (``_sites``);
 8. ``score_hypotheses``: each candidate's held-out evidence;
 9. ``locate_after``: what the best significant candidate leaves;
 10. ``judge_offsets``: constant offsets no parameter explains;
@@ -65,7 +68,7 @@ from ._second_round import second_round
 from ._start import estimate_start, start_parameters
 from ._state import NullTest, Recording
 from ._trials import SEPARATOR, each_trials_own, first_maneuver
-from ._sites import drop_law_twins, join_alike_sites, screen_sites
+from ._sites import drop_law_twins, join_alike_sites, screen_sites, sets_to_split
 from ._summary import significant_updates, stated_uncertainty, structure_energy
 from ._updating import (
     OFFSET_FINDING,
@@ -407,7 +410,7 @@ def fit_mechanisms(state):
                             progress=state.note)
     scored = {c["name"]: score_candidate(state.problem, c, points[c["name"]]) for c in runnable}
     return replace(state, candidates=cands, runnable=runnable, skipped=skipped, points=points, scored=scored,
-                   site_groups=site_groups, site_screen=screen, screened_out=screened_out)
+                   site_groups=site_groups, site_screen=screen, screened_out=screened_out, site_split=[])
 
 
 def refit_jointly(state):
@@ -501,6 +504,55 @@ def refit_rivals(state):
     if not rivals:
         return state
     return test_against_noise(_refit(state, rivals))
+
+
+def split_joined_sites(state):
+    """A lead acting at several sites, and the laws alike to it, fitted at each of those sites alone.
+
+    A joined set or the law everywhere is fitted with one coefficient at all
+    its sites, so one site's effect is stood in for by the law spread over
+    them all, and of two laws the one that spreads it better leads: on the
+    crane (site seed 304) friction at the head sheave, 5x its threshold,
+    was named bearing friction at all three sheaves, 890 ahead of the
+    capstan at every ring, and the capstan at the head sheave was never
+    fitted (``_sites.sets_to_split``). Each member is fitted as any
+    candidate is, the best member of each set refitted jointly with the
+    parameters, as its set was, and the null test taken again with the new
+    signatures (its multiple-testing cost). Only a lead beyond the threshold
+    is split: below it nothing would be named.
+    """
+    eligible = _eligible(state)
+    if state.null is None or not eligible or state.scored[eligible[0]["name"]]["improvement"] <= state.null.threshold:
+        return state
+    leading = [c["name"] for c in eligible]
+    signatures = {n: state.scored[n]["sim"] - state.base_sim for n in leading}
+    sets = sets_to_split(state.problem, state.rig, leading, signatures, {g["law"] for g in state.site_groups})
+    fitted = {c["name"] for c in state.runnable}
+    members = [m for ms in sets.values() for m in ms if m not in fitted]
+    if not members:
+        return state
+    maneuver = first_maneuver(state.nominal_ctx)
+    new, skipped = [], list(state.skipped)
+    for c in candidate_list(list(dict.fromkeys(members)), state.rig):
+        why = unavailable_reason(c, state.rig, maneuver, state.discretization)
+        if why:
+            skipped.append({"name": c["name"], "reason": why})
+            continue
+        c["searched"] = affordable_range(c, state.rig, maneuver, state.discretization)
+        new.append(c)
+    _note(state, f"fitting {', '.join(sets)} at each site alone ({', '.join(c['name'] for c in new)})")
+    points = fit_candidates(state.problem, state.ctx, new, state.base_sim, workers=state.workers,
+                            progress=state.note)
+    scored = dict(state.scored, **{c["name"]: score_candidate(state.problem, c, points[c["name"]]) for c in new})
+    split = [{"set": name, "members": ms} for name, ms in sets.items()]
+    state = replace(state, candidates=state.candidates + new, runnable=state.runnable + new, skipped=skipped,
+                    points=dict(state.points, **points), scored=scored, site_split=split)
+    best = []
+    for ms in sets.values():
+        named = [c for c in _eligible(state) if c["name"] in ms and c["name"] not in state.joints]
+        if named and named[0] not in best:
+            best.append(named[0])
+    return test_against_noise(_refit(state, best))
 
 
 def test_against_noise(state):
@@ -772,8 +824,8 @@ def update_again(state):
     again = _with_update(replace(state, superseded=first, after_name=None, located_after=[], structured_after=[]),
                          update, resumed["error_directions"], resumed["model_error"],
                          model_error_sims=state.model_error_sims + 2)
-    for step in (locate_updated, fit_mechanisms, refit_jointly, test_against_noise, refit_rivals, score_hypotheses,
-                 credit_at_joint_rig, locate_after, judge_offsets, decide_verdict):
+    for step in (locate_updated, fit_mechanisms, refit_jointly, test_against_noise, refit_rivals, split_joined_sites,
+                 score_hypotheses, credit_at_joint_rig, locate_after, judge_offsets, decide_verdict):
         again = step(again)
     return again
 
@@ -908,5 +960,5 @@ def predict_held_out(state):
 
 
 STEPS = (align_recording, locate_nominal, update_rig, locate_updated, fit_mechanisms, refit_jointly,
-         test_against_noise, refit_rivals, score_hypotheses, credit_at_joint_rig, locate_after, judge_offsets,
-         decide_verdict, update_again, test_second_mechanism, predict_held_out)
+         test_against_noise, refit_rivals, split_joined_sites, score_hypotheses, credit_at_joint_rig, locate_after,
+         judge_offsets, decide_verdict, update_again, test_second_mechanism, predict_held_out)
