@@ -201,16 +201,20 @@ def _phi_factors(m, tw, h):
 
 
 @njit(cache=True, **NO_REFCOUNT)
-def rhs_tangent(t, y, dY, dacc, m, dm, work, tw, update, h):
+def rhs_tangent(t, y, dY, dacc, m, dm, work, tw, h):
     """The tangent of ``_kernel._rhs`` at (t, y), called right after it (it reads the primal's ``work``).
 
-    ``dY`` (n, nd): the state's tangents; with ``update`` its Maxwell forces'
-    rows are advanced as ``rhs_maxwell_update`` advanced the state's (from
-    ``tw.F_then`` and ``tw.eps_then``, what they were before it, over step
-    ``h``). ``dacc`` (n, nd) receives the accelerations' tangents (only those
-    rows). ``tw.deps`` holds the stretch ratios' tangents at the step's start
-    on entry (``update``) and at (t, y) on return.
+    ``dY`` (n, nd): the state's tangents; with a step ``h`` > 0 its Maxwell
+    forces' rows are advanced as ``rhs_maxwell_update`` advanced the state's
+    (from ``tw.F_then`` and ``tw.eps_then``, what they were before it, over
+    step ``h``); ``h`` = 0 advances nothing. ``dacc`` (n, nd) receives the
+    accelerations' tangents (only those rows). ``tw.deps`` holds the stretch
+    ratios' tangents at the step's start on entry (``h`` > 0) and at (t, y)
+    on return.
     """
+    # Derived, not passed: a constant True or False in the call would be a literal type, and numba would compile
+    # this whole tree once for each (about a third of the tangent's compile time).
+    update = h > 0.0
     nb, nd = m.nb, dY.shape[1]
     P, E, R, S = m.part_seg.shape[0], m.el_seg.shape[0], m.ring_seg.shape[0], m.seg_ks.shape[0]
     o_part, o_vel, o_F, o_ring = _offsets(m)
@@ -550,7 +554,7 @@ def _step_tangent(t, h, y, acc, y_eval, dY, dacc, dY_eval, m, dm, work, tw):
     _maxwell_factors(h, m, work)
     _phi_factors(m, tw, h)
     rhs_maxwell_update(t + h, y_eval, acc, m, work)  # a call, not inlined: compiled once, in the kernel's cache
-    rhs_tangent(t + h, y_eval, dY_eval, dacc, m, dm, work, tw, True, h)
+    rhs_tangent(t + h, y_eval, dY_eval, dacc, m, dm, work, tw, h)
     for e in range(o_F, o_ring):
         y[e] = y_eval[e]
         for k in range(nd):
@@ -662,7 +666,7 @@ def integrate_tangent(y0, dY0, t0, out_dt, substeps, m, dm, work, tw):
     acc = np.empty(n)
     dacc = np.zeros((n, nd))
     rhs(t0, y, acc, m, work)
-    rhs_tangent(t0, y, dY, dacc, m, dm, work, tw, False, 0.0)
+    rhs_tangent(t0, y, dY, dacc, m, dm, work, tw, 0.0)
     element_stretch(t0, y, m, work, work.eps)
     work.step[0] = -1.0
     y_eval, dY_eval = np.empty(n), np.empty((n, nd))
@@ -693,5 +697,5 @@ def rhs_tangent_at(t, y, dY, m, dm, work, tw):
     acc = np.empty(n)
     dacc = np.zeros((n, nd))
     rhs(t, y, acc, m, work)
-    rhs_tangent(t, y, dY, dacc, m, dm, work, tw, False, 0.0)
+    rhs_tangent(t, y, dY, dacc, m, dm, work, tw, 0.0)
     return acc, dacc

@@ -230,10 +230,11 @@ def _kick_pair_tangent(e, hx, hy, hz, dhx, dhy, dhz, sign, m, dm, work, tw, dY, 
     dcx = dhy * uz + hy * duz - dhz * uy - hz * duy
     dcy = dhz * ux + hz * dux - dhx * uz - hx * duz
     dcz = dhx * uy + hx * duy - dhy * ux - hy * dux
-    jx, jy, jz = sign * cx * i, sign * cy * i, sign * cz * i
-    djx, djy, djz = sign * (dcx * i + cx * di), sign * (dcy * i + cy * di), sign * (dcz * i + cz * di)
-    _kick_tangent(m.el_kb[e], m.el_ib[e], e, 1, jx, jy, jz, djx, djy, djz, m, dm, work, tw, dY, o_vel, k)
-    _kick_tangent(m.el_ka[e], m.el_ia[e], e, 0, -jx, -jy, -jz, -djx, -djy, -djz, m, dm, work, tw, dY, o_vel, k)
+    # The end from a loop, not a constant: a literal 0 or 1 would compile ``_kick_tangent`` once for each.
+    for end in range(2):
+        kind, idx, sg = (m.el_kb[e], m.el_ib[e], sign) if end == 1 else (m.el_ka[e], m.el_ia[e], -sign)
+        _kick_tangent(kind, idx, e, end, sg * cx * i, sg * cy * i, sg * cz * i, sg * (dcx * i + cx * di),
+                      sg * (dcy * i + cy * di), sg * (dcz * i + cz * di), m, dm, work, tw, dY, o_vel, k)
 
 
 @njit(cache=True)

@@ -33,7 +33,11 @@ from ._kernel import (
 )
 from ._verlet import verlet_scratch, verlet_steps
 
-__all__ = ["gershgorin_lambda", "gershgorin_rows", "state_gershgorin_lambda", "integrate_tracked", "RK4", "VERLET"]
+__all__ = ["gershgorin_lambda", "gershgorin_rows", "state_gershgorin_lambda", "integrate_tracked", "RK4", "VERLET",
+           "MAX_STEPS"]
+
+# The steps a run may take (``max_steps``): a rig that stiffens without bound stops here.
+MAX_STEPS = 50_000_000
 
 # Integrators ``integrate_tracked`` runs (``_verlet`` says why there are two).
 RK4 = 0
@@ -164,7 +168,7 @@ def state_gershgorin_lambda(t, y, m, work):
 
 
 @njit(cache=True)
-def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, max_steps=50_000_000, method=RK4):
+def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, max_steps=MAX_STEPS, method=RK4):
     """RK4 or Verlet from ``t0``, one record every ``out_dt``, the step cut as the rig stiffens.
 
     In each record interval the step is ``dt0 * sqrt(lam0 / lam)`` when the
