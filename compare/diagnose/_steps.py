@@ -396,21 +396,28 @@ def fit_mechanisms(state):
     if screen:
         _note(state, "sites screened (linearized improvement): " + ", ".join(
             f"{e['name']} {e['improvement']:.3g}{'' if e['fitted'] else ' (not fitted)'}" for e in screen))
-    skipped, runnable = [], []
-    maneuver = first_maneuver(state.nominal_ctx)
-    for c in cands:
-        why = unavailable_reason(c, state.rig, maneuver, state.discretization)
-        if why:
-            skipped.append({"name": c["name"], "reason": why})
-            continue
-        c["searched"] = affordable_range(c, state.rig, maneuver, state.discretization)
-        runnable.append(c)
+    runnable, skipped = _runnable(state, cands)
     _note(state, f"fitting {len(runnable)} candidate mechanisms ({', '.join(c['name'] for c in runnable)})")
     points = fit_candidates(state.problem, state.ctx, runnable, state.base_sim, workers=state.workers,
                             progress=state.note)
     scored = {c["name"]: score_candidate(state.problem, c, points[c["name"]]) for c in runnable}
     return replace(state, candidates=cands, runnable=runnable, skipped=skipped, points=points, scored=scored,
                    site_groups=site_groups, site_screen=screen, screened_out=screened_out, site_split=[])
+
+
+def _runnable(state, candidates):
+    """``candidates`` that can run on this rig and maneuver, each with its affordable range (``searched``), and
+    the others with why not."""
+    runnable, skipped = [], []
+    maneuver = first_maneuver(state.nominal_ctx)
+    for c in candidates:
+        why = unavailable_reason(c, state.rig, maneuver, state.discretization)
+        if why:
+            skipped.append({"name": c["name"], "reason": why})
+            continue
+        c["searched"] = affordable_range(c, state.rig, maneuver, state.discretization)
+        runnable.append(c)
+    return runnable, skipped
 
 
 def refit_jointly(state):
@@ -531,15 +538,8 @@ def split_joined_sites(state):
     members = [m for ms in sets.values() for m in ms if m not in fitted]
     if not members:
         return state
-    maneuver = first_maneuver(state.nominal_ctx)
-    new, skipped = [], list(state.skipped)
-    for c in candidate_list(list(dict.fromkeys(members)), state.rig):
-        why = unavailable_reason(c, state.rig, maneuver, state.discretization)
-        if why:
-            skipped.append({"name": c["name"], "reason": why})
-            continue
-        c["searched"] = affordable_range(c, state.rig, maneuver, state.discretization)
-        new.append(c)
+    new, skipped = _runnable(state, candidate_list(list(dict.fromkeys(members)), state.rig))
+    skipped = state.skipped + skipped
     _note(state, f"fitting {', '.join(sets)} at each site alone ({', '.join(c['name'] for c in new)})")
     points = fit_candidates(state.problem, state.ctx, new, state.base_sim, workers=state.workers,
                             progress=state.note)
