@@ -16,7 +16,7 @@ from ._release import POSE_COORDINATES, let_go
 from ._rig import load_rig
 from ._statics import solve_statics
 from ._time_step import start_time_step
-from ._tracked import RK4, VERLET, integrate_tracked
+from ._tracked import MAX_STEPS, RK4, VERLET, integrate_tracked
 from ._table import trajectory_columns
 
 # The integrators ``simulate`` offers, by name.
@@ -29,11 +29,8 @@ class SimulationError(RuntimeError):
     """The integration blew up (non-finite state or runaway speed)."""
 
 
-# Work sized from the input is checked before it is spent: a mistyped
-# --dt 1e-12 or --rate once ran for hours or until the kernel killed it.
-# 5e7 steps: about 45 min at the 57 us a step measured on the baseline rig
-# (2 cores, 2026-11-24); a fine-step study (10 s at 1 us) needs 1e7.
-MAX_STEPS = 5e7
+# Work sized from the input is checked before it is spent (``MAX_STEPS``, the integrator's own bound): a
+# mistyped --dt 1e-12 or --rate once ran for hours or until the kernel killed it.
 MAX_RECORD_BYTES = 2 * 2**30
 # No rope, cable or chain stretches a quarter of its length without breaking (nylon, the stretchiest fibre,
 # parts near 20-25 %; steel wire near 2 %): a rig that must, to hang or to be held where its release says, is
@@ -453,7 +450,7 @@ def simulate(
     if dt is None:
         dt0, lam0 = start_time_step(model, y0, t0, integrator=integrator)
         records, substeps, status, bad_time, bad_index = integrate_tracked(
-            y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, int(MAX_STEPS), method
+            y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, MAX_STEPS, method
         )
         if status == _kernel.STATUS_TOO_STIFF:
             raise ValueError(
@@ -471,7 +468,7 @@ def simulate(
         if method == VERLET:
             # lam0 = inf: the step is never cut, nor refined at a slack change (a fixed step was asked)
             records, _, status, bad_time, bad_index = integrate_tracked(
-                y0, t0, out_dt, n_records, step, np.inf, m, work, max_speed, int(MAX_STEPS), method)
+                y0, t0, out_dt, n_records, step, np.inf, m, work, max_speed, MAX_STEPS, method)
         else:
             records, status, bad_step, bad_index = _kernel.integrate(
                 y0, t0, step, n_records * per_record, per_record, m, work, max_speed
