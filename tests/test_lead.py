@@ -11,6 +11,7 @@ from scipy import stats
 
 from dragline.compare.diagnose._hypotheses import Problem
 from dragline.compare.diagnose._lead import lead_tests
+from dragline.compare.diagnose._updating import MODEL_ERROR_FACTOR
 
 DT = 0.005
 TIME = np.arange(0.0, 20.0, DT)
@@ -92,6 +93,30 @@ def test_a_real_lead_is_consistent_and_an_equal_one_rarely():
         tests = lead_tests(_problem(), {"x": z + a, "y": z + b}, ["x", "y"], seed=k)
         called += tests["x"]["y"]["consistent"]
     assert called <= 3
+
+
+def test_a_lead_the_finer_discretization_reverses_is_no_lead():
+    # The lead's residual misses less than the rival's at this level; at the next finer one the roles turn (a law
+    # whose discretized form happens to fit better here). The truth lies about MODEL_ERROR_FACTOR times as far
+    # as the finer level: the lead's spread holds that shift, and a lead smaller than it is no lead.
+    rng = np.random.default_rng(5)
+    z = _ar1(rng, 0.5, np.ones(TIME.size))
+    delta = np.sqrt(2000.0 / float((_signature() ** 2).sum())) * _signature()
+    levels = {"lead": (z, z + 1.5 * delta), "rival": (z + delta, z)}  # (this level, the finer one)
+    finer_chi2 = {name: tuple(float((r**2).sum()) for r in pair) for name, pair in levels.items()}
+    plain = lead_tests(_problem(), {"lead": z, "rival": z + delta}, ["lead", "rival"])["lead"]["rival"]
+    tests = lead_tests(_problem(), {"lead": z, "rival": z + delta}, ["lead", "rival"], finer_chi2=finer_chi2)
+    test = tests["lead"]["rival"]
+    shift = (finer_chi2["rival"][1] - finer_chi2["lead"][1]) - (finer_chi2["rival"][0] - finer_chi2["lead"][0])
+    assert shift < -test["lead"]  # the finer level reverses the lead
+    assert test["discretization_shift"] == pytest.approx(shift)
+    assert test["sd_noise"] == pytest.approx(plain["sd"])
+    assert test["sd"] == pytest.approx(np.hypot(plain["sd"], MODEL_ERROR_FACTOR * shift))
+    assert plain["consistent"] and not test["consistent"]
+    # A shift known for one candidate only says nothing about the lead.
+    alone = lead_tests(_problem(), {"lead": z, "rival": z + delta}, ["lead", "rival"],
+                       finer_chi2={"lead": finer_chi2["lead"]})["lead"]["rival"]
+    assert alone["discretization_shift"] is None and alone["sd"] == pytest.approx(plain["sd"])
 
 
 def test_identical_residuals_lead_nowhere():

@@ -136,8 +136,8 @@ def _no_lead(best, rival, noise):
         return f"a lead of {lead:.1f}, less than noise alone gives ({noise:.1f})"
     test = (best.get("leads") or {}).get(rival["name"])
     if test is not None and not test["consistent"]:
-        return (f"a lead of {lead:.1f} that the residual's random part could give (t = {test['t']:.2f} in its "
-                f"spread {test['sd']:.3g}, {test['critical']:.2f} needed)")
+        return (f"a lead of {lead:.1f} that the residual's random part and the model's discretization could give "
+                f"(t = {test['t']:.2f} in its spread {test['sd']:.3g}, {test['critical']:.2f} needed)")
     return None
 
 
@@ -196,8 +196,8 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
        parameters' moving on from where updating stopped.
     4. A significant rival inside its range that the best does not lead
        beyond what noise alone gives (``noise_threshold``) or by more than
-       the residual's random part could give it (``_lead.lead_tests``, the
-       best's ``leads``): "unexplained" (indistinguishable). A rival at an
+       the residual's random part and the model's discretization could give
+       it (``_lead.lead_tests``, the best's ``leads``): "unexplained" (indistinguishable). A rival at an
        end of its range is no rival; nor is the best's own law at other
        sites (``law@sites``): the law is named, and the reason says which
        site sets it could not be told from; nor another law whose signature

@@ -629,14 +629,14 @@ def _signature_slope(points, value, refitted):
 
 
 def _marginal(state, candidate, scored, residual):
-    """``marginal_uncertainty`` of a fitted candidate, with its value's discretization shift; None without an
-    update or a slope."""
+    """``marginal_uncertainty`` of a fitted candidate, with its value's discretization shift, and the candidate
+    simulated at the next finer discretization; (None, None) without an update or a slope."""
     name = candidate["name"]
     if state.update is None or scored["value"] <= 0 or scored["at_bound"]:
-        return None
+        return None, None
     slope = _signature_slope(state.points[name], scored["value"], name in state.joints)
     if slope is None:
-        return None
+        return None, None
     ctx = state.ctx
     if name in state.joints:  # the candidate's best point sits on its jointly refitted rig
         joint = state.joints[name]
@@ -644,7 +644,7 @@ def _marginal(state, candidate, scored, residual):
     finer = simulate_channels(name, candidate["main"], scored["value"], ctx,
                               finer_discretization(ctx["rig"], ctx["discretization"]))
     return marginal_uncertainty(state.plain_problem, state.nominal_ctx, state.update, slope, scored["sim"], residual,
-                                state.error_directions, finer=finer)
+                                state.error_directions, finer=finer), finer
 
 
 def score_hypotheses(state):
@@ -653,7 +653,7 @@ def score_hypotheses(state):
     channels, sigma, width = rec.channels, rec.noise, rec.lowpass_width
     threshold, r0 = state.null.threshold, state.r_base
     e_before = structure_energy(r0, channels, sigma, width, rec.scale)
-    hypotheses, fitted_series, residuals = [], {}, {}
+    hypotheses, fitted_series, residuals, finer_chi2 = [], {}, {}, {}
     for c in state.runnable:
         s = state.scored[c["name"]]
         main, value = c["main"], s["value"]
@@ -677,6 +677,9 @@ def score_hypotheses(state):
             rms_ch[ch] = {"before": float(np.sqrt(np.nanmean(r0[:, j] ** 2))),
                           "after": float(np.sqrt(np.nanmean(after**2)))}
         n_w = problem.n_weighted
+        marginal, finer = _marginal(state, c, s, residuals.get(c["name"]))
+        if finer is not None:
+            finer_chi2[c["name"]] = (problem.evaluate(s["sim"])["full"], problem.evaluate(finer)["full"])
         # Evidence only where the model does not resolve the motion is not
         # evidence (``_band``).
         significant, unresolved = significance(s["improvement"], band["resolved"], value, threshold)
@@ -684,9 +687,7 @@ def score_hypotheses(state):
             "name": c["name"],
             "main_parameter": main,
             "parameters": params,
-            "uncertainty": stated_uncertainty(s, main, state.null.kappa,
-                                              _marginal(state, c, s, residuals.get(c["name"])),
-                                              own_error=state.null.own_error),
+            "uncertainty": stated_uncertainty(s, main, state.null.kappa, marginal, own_error=state.null.own_error),
             "range": list(c["range"]),
             "searched_range": list(c["searched"]),
             "rms_before": math.sqrt(s["heldout_before"] / n_w),
@@ -717,7 +718,7 @@ def score_hypotheses(state):
     # Each candidate's lead over every one behind it, against what noise and model error could give (``_lead``).
     held = {h["name"]: problem.held_out_residual(*state.scored[h["name"]]["fold_sims"]) for h in hypotheses}
     leads = lead_tests(problem, held, [h["name"] for h in hypotheses], seed=state.seed,
-                       base=problem.held_out_residual(state.base_sim, state.base_sim))
+                       base=problem.held_out_residual(state.base_sim, state.base_sim), finer_chi2=finer_chi2)
     for h in hypotheses:
         h["leads"] = leads[h["name"]]
     for k, h in enumerate(sorted(hypotheses, key=lambda h: -h["signature_match"])):
