@@ -590,7 +590,7 @@ def project(t, y, m, work):
 
 
 @njit(cache=True, **NO_REFCOUNT)
-def dissipate(t, y, dt, m, work, geometry_fresh):
+def dissipate(t, y, dt, m, work):
     """Implicit step of the dissipative mechanisms, after each step of either integrator (splitting).
 
     Joint moments (rope bending damping c, chain-link friction mu r T) and
@@ -609,28 +609,38 @@ def dissipate(t, y, dt, m, work, geometry_fresh):
     the RK4 step moves it by about dt^2 a / 2 before friction stops it
     (time constant ~ 2 / (dt omega^2); tests/test_mechanism_signatures.py).
 
-    ``geometry_fresh``: ``work`` already holds the body matrices, segment
-    lengths and element-end positions at (t, y)'s positions (Verlet's last
-    right-hand side was evaluated there; its kick moved only velocities), so
-    they are not computed again (a Verlet step with ring friction 3.08 -> 2.62 us).
+    ``work`` is brought to (t, y)'s positions first: body matrices, segment
+    lengths and element-end positions (``dissipate_fresh`` when they are
+    already there).
+    """
+    if m.has_joints == 0 and m.has_ring_friction == 0:
+        return
+    o_part, o_vel, o_F, o_ring = _offsets(m)
+    _fixed_points(t, m.reel_t, m.point_pos, work.fpos, work.fvel)
+    for b in range(m.nb):
+        _body_pose(y, b, work.T, work)
+    _segment_lengths(t, m.seg_len0, m.seg_reel, m.seg_reel_off, m.reel_t, m.reel_len, work.Lseg, work.dLseg,
+                     work.reel_buf, work.reel_rate)
+    _gather_nodes(y, m, work.T, work.fpos, work.fvel, work.nx, work.nv, work.narm, o_part, o_vel, False)
+    dissipate_fresh(t, y, dt, m, work)
+
+
+@njit(cache=True, **NO_REFCOUNT)
+def dissipate_fresh(t, y, dt, m, work):
+    """``dissipate`` with ``work`` already at (t, y)'s positions: Verlet's last right-hand side was evaluated
+    there and its kick moved only velocities, so the geometry is not computed again (a Verlet step with ring
+    friction 3.08 -> 2.62 us). One function, not a flag: a constant flag is a type of its own to numba, and
+    each value compiled the whole body again.
     """
     has_joints = m.has_joints != 0
     has_rings = m.has_ring_friction != 0
     if not (has_joints or has_rings):
         return
-    nb = m.nb
     E = m.el_seg.shape[0]
     o_part, o_vel, o_F, o_ring = _offsets(m)
-    T, Lseg, dLseg, reel_buf, reel_rate, fpos, fvel = work.T, work.Lseg, work.dLseg, work.reel_buf, work.reel_rate, work.fpos, work.fvel
+    T, Lseg, fpos, fvel = work.T, work.Lseg, work.fpos, work.fvel
     el_u, el_len, el_T, el_arm = work.el_u, work.el_len, work.el_T, work.el_arm
     el_seg, seg_rho = m.el_seg, m.seg_rho
-    if not geometry_fresh:
-        _fixed_points(t, m.reel_t, m.point_pos, fpos, fvel)
-        for b in range(nb):
-            _body_pose(y, b, T, work)
-        _segment_lengths(t, m.seg_len0, m.seg_reel, m.seg_reel_off, m.reel_t, m.reel_len, Lseg, dLseg, reel_buf,
-                         reel_rate)
-        _gather_nodes(y, m, T, fpos, fvel, work.nx, work.nv, work.narm, o_part, o_vel, False)
     if has_joints:
         for e in range(E):
             se = el_seg[e]
@@ -910,7 +920,7 @@ def rk4_step(t, h, y, k1, k2, k3, k4, tmp, m, work):
         y[i] += sixth * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
     project(t + h, y, m, work)
     if m.has_joints != 0 or m.has_ring_friction != 0:  # skip even the call in the nominal model
-        dissipate(t + h, y, h, m, work, False)
+        dissipate(t + h, y, h, m, work)
 
 
 @njit(cache=True)

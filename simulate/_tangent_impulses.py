@@ -31,7 +31,7 @@ __all__ = ["impulses_tangent"]
 
 @njit(cache=True)
 def impulses_tangent(y, dY, h, m, dm, work, tw):
-    """``_kernel.dissipate(t + h, y, h, m, work, True)`` with its tangent on ``dY`` (n, nd).
+    """``_kernel.dissipate_fresh(t + h, y, h, m, work)`` with its tangent on ``dY`` (n, nd).
 
     ``work`` and ``tw`` hold the geometry and its tangent at y's positions
     (the last right-hand side's and its tangent's).

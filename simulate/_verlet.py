@@ -26,7 +26,7 @@ h:
    sheave's bearing damping) then err by O(h^2) and the scheme stays
    second order;
 4. kick: velocities += h/2 a_{n+1}; then the dissipative mechanisms'
-   implicit impulses (``_kernel.dissipate``), as after an RK4 step.
+   implicit impulses (``_kernel.dissipate_fresh``), as after an RK4 step.
 
 Eq. 8's Maxwell branch, F_m' = Kv eps' - (Kv/Cv) F_m with eps = s / L_e the
 element's stretch ratio, is linear in F_m: with eps' constant over the step,
@@ -51,7 +51,7 @@ from ._kernel import (
     _gather_nodes,
     _offsets,
     _segment_lengths,
-    dissipate,
+    dissipate_fresh,
     _rhs,
     rebase,
     rhs,
@@ -207,5 +207,5 @@ def _step(t, h, y, acc, y_eval, m, work):
         y[e] = y_eval[e]  # the Maxwell forces, advanced in y_eval
     _kick(y, acc, half, nb, o_vel, o_F, o_ring, R)
     if m.has_joints != 0 or m.has_ring_friction != 0:
-        dissipate(t + h, y, h, m, work, True)  # work holds the geometry at (t + h, y): rhs_maxwell_update
+        dissipate_fresh(t + h, y, h, m, work)  # work holds the geometry at (t + h, y): rhs_maxwell_update
 

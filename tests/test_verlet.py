@@ -106,8 +106,8 @@ def test_dissipation_reads_the_geometry_verlet_left_exactly_as_it_would_compute_
     work = _kernel.make_work(m)
     _kernel.rhs(t, y, np.empty_like(y), m, work)
     reused, fresh = y.copy(), y.copy()
-    _kernel.dissipate(t, reused, 1e-4, m, work, True)
-    _kernel.dissipate(t, fresh, 1e-4, m, _kernel.make_work(m), False)
+    _kernel.dissipate_fresh(t, reused, 1e-4, m, work)
+    _kernel.dissipate(t, fresh, 1e-4, m, _kernel.make_work(m))
     assert not np.array_equal(fresh, y)  # the impulses acted
     np.testing.assert_array_equal(reused, fresh)
 
@@ -169,7 +169,7 @@ def test_the_fused_step_is_the_textbook_kick_drift_kick_to_the_bit(physics):
     for j in range(3):
         ref, acc = _textbook_step(t + j * h, h, ref, acc, m, ref_work)
         if m.has_ring_friction:
-            _kernel.dissipate((t + j * h) + h, ref, h, m, ref_work, True)
+            _kernel.dissipate_fresh((t + j * h) + h, ref, h, m, ref_work)
     assert not np.array_equal(ref, y0)
     np.testing.assert_array_equal(fused, ref)
     np.testing.assert_array_equal(fused_acc, acc)
