@@ -197,14 +197,14 @@ def decide(hypotheses, threshold, structured_before, structured_after, offsets_o
     4. A significant rival inside its range that the best does not lead
        beyond what noise alone gives (``noise_threshold``) or by more than
        the residual's random part and the model's discretization could give
-       it (``_lead.lead_tests``, the best's ``leads``): "unexplained" (indistinguishable). A rival at an
-       end of its range is no rival; nor is the best's own law at other
-       sites (``law@sites``): the law is named, and the reason says which
-       site sets it could not be told from; nor another law whose signature
-       on the held-out data is the best's (cosine at least ``SITES_ALIKE``,
-       the lead test's ``cosine``; ``alike_laws``): the recording cannot tell
-       the two laws apart, as it cannot tell sites apart, and the reason
-       says so.
+       it (``_lead.lead_tests``, the best's ``leads``): "unexplained"
+       (indistinguishable). A rival at an end of its range is no rival;
+       nor is the best's own law at other sites (``law@sites``): the law is
+       named, and the reason says which site sets it could not be told
+       from; nor another law whose signature on the held-out data is the
+       best's (cosine at least ``SITES_ALIKE``, the lead test's ``cosine``;
+       ``alike_laws``): the recording cannot tell the two laws apart, as it
+       cannot tell sites apart, and the reason says so.
     4b. The best candidate's signature correlates with a rig parameter's
        sensitivity beyond ``CONFOUNDED`` and that parameter could make it
        within ``BOUND_TOLERANCES`` of its tolerance (the updating's own
