@@ -679,7 +679,7 @@ def score_hypotheses(state):
         n_w = problem.n_weighted
         marginal, finer = _marginal(state, c, s, residuals.get(c["name"]))
         if finer is not None:
-            finer_chi2[c["name"]] = (problem.evaluate(s["sim"])["full"], problem.evaluate(finer)["full"])
+            finer_chi2[c["name"]] = (s["evaluation"]["full"], problem.evaluate(finer)["full"])
         # Evidence only where the model does not resolve the motion is not
         # evidence (``_band``).
         significant, unresolved = significance(s["improvement"], band["resolved"], value, threshold)
