@@ -593,17 +593,21 @@ def project(t, y, m, work):
 def dissipate(t, y, dt, m, work):
     """Implicit step of the dissipative mechanisms, after each step of either integrator (splitting).
 
-    Joint moments (rope bending damping c, chain-link friction mu r T) and
-    ring friction (capstan, T_low (e^(mu beta) - 1), and a sheave bearing's
+    Joint moments (rope bending damping c, bending stiffness s = EI / l,
+    chain-link friction mu r T) and ring friction (capstan, T_low (e^(mu beta) - 1), and a sheave bearing's
     Coulomb friction, mu_b |T_B u_B - T_A u_A|) are stiff on these light
     ropes: explicitly they would need steps far below the axial-wave limit.
     Here they act as velocity impulses solved implicitly, one Gauss-Seidel
     sweep over the joints: with w the joint's inverse inertia to a bending
     impulse (1/m over the joint's element ends, over L^2, plus the shared
     particle's cross term 2 (u1 . u2) / (m L1 L2)), damping
-    takes H = -c dt omega / (1 + c dt w), and Coulomb friction either stops
+    takes H = -c dt omega / (1 + c dt w) (with stiffness, a spring impulse
+    -s dt theta on the bend theta, explicit where 4 s w dt^2 <= 2 and
+    otherwise as implicit as the step's stability asks, which damps only
+    such unresolved bending), and Coulomb friction either stops
     the relative rotation (stick) or takes |H| = mu r T dt (slip); a ring's
-    slide likewise. Unconditionally stable and dissipative; first order in
+    slide likewise. Unconditionally stable, and dissipative but for the
+    bending stiffness's spring; first order in
     these terms (Lie splitting), exact in the nominal model, where it does
     nothing. Known limit of the splitting: a stuck joint or ring creeps, as
     the RK4 step moves it by about dt^2 a / 2 before friction stops it
@@ -644,7 +648,7 @@ def dissipate_fresh(t, y, dt, m, work):
     if has_joints:
         for e in range(E):
             se = el_seg[e]
-            if m.seg_bend_c[se] == 0.0 and m.seg_link_mu[se] == 0.0:
+            if m.seg_bend_c[se] == 0.0 and m.seg_bend_k[se] == 0.0 and m.seg_link_mu[se] == 0.0:
                 continue  # no joint mechanism acts on this segment
             _dissipate_geometry(e, y, m, work, o_F, o_ring)
         _joint_geometry(m, Lseg, el_len, el_arm, work.el_inv_len, work.el_inv_mass)
@@ -780,14 +784,14 @@ def _joint_impulses(y, dt, m, T, fpos, fvel, el_u, el_inv_len, el_inv_mass, el_T
     end a, then of end b) come from ``dissipate``'s geometry pass.
     """
     joint_a, joint_b, joint_seg = m.joint_a, m.joint_b, m.joint_seg
-    seg_bend_c, seg_link_mu, seg_link_r = m.seg_bend_c, m.seg_link_mu, m.seg_link_r
+    seg_bend_c, seg_bend_k, seg_link_mu, seg_link_r = m.seg_bend_c, m.seg_bend_k, m.seg_link_mu, m.seg_link_r
     el_ka, el_ia, el_ra, el_kb, el_ib, el_rb = m.el_ka, m.el_ia, m.el_ra, m.el_kb, m.el_ib, m.el_rb
     body_I, body_Iinv = m.body_I, m.body_Iinv
     for j in range(joint_b.shape[0]):
         s = joint_seg[j]
         c = seg_bend_c[s]
         mu = seg_link_mu[s]
-        if c == 0.0 and mu == 0.0:
+        if c == 0.0 and mu == 0.0 and seg_bend_k[s] == 0.0:
             continue
         e2 = joint_b[j]
         e1 = joint_a[j]
@@ -804,6 +808,7 @@ def _joint_impulses(y, dt, m, T, fpos, fvel, el_u, el_inv_len, el_inv_mass, el_T
         b = 0
         i1 = 1.0
         u1x, u1y, u1z = 0.0, 0.0, 0.0
+        stiffness = 0.0  # N m/rad: EI over the joint's length, where two elements meet
         if e1 >= 0:
             _, _, _, vxa, vya, vza, _, _, _ = _node(el_ka[e1], el_ia[e1], el_ra, e1, y, T, fpos, fvel, o_part, o_vel)
             _, _, _, vxb, vyb, vzb, _, _, _ = _node(el_kb[e1], el_ib[e1], el_rb, e1, y, T, fpos, fvel, o_part, o_vel)
@@ -816,6 +821,7 @@ def _joint_impulses(y, dt, m, T, fpos, fvel, el_u, el_inv_len, el_inv_mass, el_T
             w += ((el_inv_mass[e1, 1] + el_inv_mass[e1, 3]) * i1 * i1
                   + 2.0 * (u1x * u2x + u1y * u2y + u1z * u2z) * el_inv_mass[e2, 0] * i1 * i2)
             tension = 0.5 * (el_T[e1] + el_T[e2])
+            stiffness = 2.0 * seg_bend_k[s] * i1 * i2 / (i1 + i2)
         else:
             b = -e1 - 1
             p, q, r = y[12 * b + 9], y[12 * b + 10], y[12 * b + 11]
@@ -827,9 +833,19 @@ def _joint_impulses(y, dt, m, T, fpos, fvel, el_u, el_inv_len, el_inv_mass, el_T
         rx, ry, rz = w2x - w1x, w2y - w1y, w2z - w1z
         along = rx * u2x + ry * u2y + rz * u2z  # a rope carries no torsion
         rx, ry, rz = rx - along * u2x, ry - along * u2y, rz - along * u2z
-        # implicit damping, then Coulomb friction on what is left
-        k = c * dt / (1.0 + c * dt * w)
-        hx, hy, hz = -k * rx, -k * ry, -k * rz
+        # implicit damping, the stiffness as implicit as stability asks, then Coulomb friction on what is left:
+        # H = -dt (c r' + s (theta + beta dt r')) with r' = r + w H and the bend theta = u1 x u2 (the moment of
+        # s (1 - u1 . u2)). z = 4 s w dt^2 bounds the rope's coupled bending modes' (omega dt)^2 (a uniform
+        # rope's highest, 16 s / m L^2, against a joint's w s = 6 s / m L^2); beta = 0 (symplectic Euler: no
+        # loss) while z <= 2, else 1/2 - 1/z, which keeps the step's margin 4 + (2 beta - 1) z >= 2
+        z = 4.0 * stiffness * w * dt * dt
+        cs = c + (0.5 - 1.0 / z if z > 2.0 else 0.0) * stiffness * dt
+        den = 1.0 + cs * dt * w
+        k = cs * dt / den
+        g = stiffness * dt / den
+        hx = -k * rx - g * (u1y * u2z - u1z * u2y)
+        hy = -k * ry - g * (u1z * u2x - u1x * u2z)
+        hz = -k * rz - g * (u1x * u2y - u1y * u2x)
         rx, ry, rz = rx + w * hx, ry + w * hy, rz + w * hz
         if mu > 0.0 and tension > 0.0:
             speed = np.sqrt(rx * rx + ry * ry + rz * rz)

@@ -181,7 +181,7 @@ KERNEL_FIELDS = (
     "ring_seg", "ring_nelA", "ring_nelB", "ring_added_mass",
     "reel_t", "reel_len", "point_pos", "relax_damping",
     "body_cda", "seg_cda", "air_density",
-    "has_joints", "joint_a", "joint_b", "joint_seg", "seg_bend_c", "seg_link_mu",
+    "has_joints", "joint_a", "joint_b", "joint_seg", "seg_bend_c", "seg_bend_k", "seg_link_mu",
     "ring_eA", "ring_eB", "ring_mu", "has_ring_friction", "seg_link_r",
     "ring_visc", "ring_bearing_mu",
     "el_na", "el_nb", "bnode_body", "bnode_arm",
@@ -377,6 +377,9 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         "joint_b": np.array([j[1] for j in joints], np.int64),
         "joint_seg": np.array([j[2] for j in joints], np.int64),
         "seg_bend_c": np.zeros(len(seg_names)),
+        # N m^2: a rope's bending stiffness EI, a moment EI / l times the bend at each joint between its elements
+        # (l the mean of the two elements' lengths), none where a rope meets a body (a pin)
+        "seg_bend_k": np.zeros(len(seg_names)),
         "seg_link_mu": np.zeros(len(seg_names)),
         "ring_eA": np.array(ring_eA, np.int64),
         "ring_eB": np.array(ring_eA, np.int64) + 1,
@@ -405,7 +408,7 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
     )
     for mechanism in physics:
         mechanism.apply(model)
-    arrays["has_joints"] = int(np.any(arrays["seg_bend_c"] > 0) or np.any(arrays["seg_link_mu"] > 0))
+    arrays["has_joints"] = int(any(np.any(arrays[f] > 0) for f in ("seg_bend_c", "seg_bend_k", "seg_link_mu")))
     arrays["has_ring_friction"] = int(np.any(arrays["ring_mu"] > 0) or np.any(arrays["ring_bearing_mu"] > 0))
     return model
 

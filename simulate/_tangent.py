@@ -40,7 +40,7 @@ TANGENT_FIELDS = (
     "body_mass", "body_I", "body_Iinv", "bnode_arm", "el_ra", "el_rb",
     "seg_ks", "seg_kv", "seg_relax", "seg_len0", "seg_reel_off", "seg_rho", "seg_cda",
     "ring_added_mass", "ring_visc", "ring_mu", "body_cda", "reel_len", "point_pos",
-    "seg_bend_c", "seg_link_mu", "seg_link_r", "body_lin_drag", "ring_bearing_mu",
+    "seg_bend_c", "seg_bend_k", "seg_link_mu", "seg_link_r", "body_lin_drag", "ring_bearing_mu",
 )
 TangentModel = namedtuple("TangentModel", TANGENT_FIELDS)
 

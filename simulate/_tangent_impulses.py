@@ -40,7 +40,7 @@ def impulses_tangent(y, dY, h, m, dm, work, tw):
     if m.has_joints != 0:
         for e in range(m.el_seg.shape[0]):
             se = m.el_seg[e]
-            if m.seg_bend_c[se] == 0.0 and m.seg_link_mu[se] == 0.0:
+            if m.seg_bend_c[se] == 0.0 and m.seg_bend_k[se] == 0.0 and m.seg_link_mu[se] == 0.0:
                 continue
             _dissipate_geometry(e, y, m, work, o_F, o_ring)
             _joint_geometry_tangent(e, y, dY, m, dm, work, tw, o_F)
@@ -248,7 +248,7 @@ def _joints(y, dY, h, m, dm, work, tw, o_part, o_vel):
         s = m.joint_seg[j]
         c = m.seg_bend_c[s]
         mu = m.seg_link_mu[s]
-        if c == 0.0 and mu == 0.0:
+        if c == 0.0 and mu == 0.0 and m.seg_bend_k[s] == 0.0:
             continue
         e2 = m.joint_b[j]
         e1 = m.joint_a[j]
@@ -264,6 +264,7 @@ def _joints(y, dY, h, m, dm, work, tw, o_part, o_vel):
         i1 = 1.0
         u1x, u1y, u1z = 0.0, 0.0, 0.0
         p, q, r = 0.0, 0.0, 0.0
+        stiffness = 0.0
         if e1 >= 0:
             _, _, _, vxa, vya, vza, _, _, _ = _node(el_ka[e1], el_ia[e1], el_ra, e1, y, T, fpos, fvel, o_part, o_vel)
             _, _, _, vxb, vyb, vzb, _, _, _ = _node(el_kb[e1], el_ib[e1], el_rb, e1, y, T, fpos, fvel, o_part, o_vel)
@@ -275,6 +276,7 @@ def _joints(y, dY, h, m, dm, work, tw, o_part, o_vel):
             w += ((el_inv_mass[e1, 1] + el_inv_mass[e1, 3]) * i1 * i1
                   + 2.0 * (u1x * u2x + u1y * u2y + u1z * u2z) * el_inv_mass[e2, 0] * i1 * i2)
             tension = 0.5 * (el_T[e1] + el_T[e2])
+            stiffness = 2.0 * m.seg_bend_k[s] * i1 * i2 / (i1 + i2)
         else:
             b = -e1 - 1
             p, q, r = y[12 * b + 9], y[12 * b + 10], y[12 * b + 11]
@@ -286,8 +288,14 @@ def _joints(y, dY, h, m, dm, work, tw, o_part, o_vel):
         r0x, r0y, r0z = w2x - w1x, w2y - w1y, w2z - w1z
         along = r0x * u2x + r0y * u2y + r0z * u2z
         rx, ry, rz = r0x - along * u2x, r0y - along * u2y, r0z - along * u2z
-        kk = c * h / (1.0 + c * h * w)
-        hx, hy, hz = -kk * rx, -kk * ry, -kk * rz
+        z = 4.0 * stiffness * w * h * h  # the stiffness's share of implicitness, beta, as the kernel's
+        beta = 0.5 - 1.0 / z if z > 2.0 else 0.0
+        cs = c + beta * stiffness * h
+        den = 1.0 + cs * h * w
+        kk = cs * h / den
+        g = stiffness * h / den
+        tx, ty, tz = u1y * u2z - u1z * u2y, u1z * u2x - u1x * u2z, u1x * u2y - u1y * u2x  # the bend, u1 x u2
+        hx, hy, hz = -kk * rx - g * tx, -kk * ry - g * ty, -kk * rz - g * tz
         qx, qy, qz = rx + w * hx, ry + w * hy, rz + w * hz
         slip = False
         stop = False
@@ -305,10 +313,14 @@ def _joints(y, dY, h, m, dm, work, tw, o_part, o_vel):
             di2 = tw.del_inv_len[e2, k]
             dw = ((tw.del_inv_mass[e2, 1, k] + tw.del_inv_mass[e2, 3, k]) * i2 * i2
                   + 2.0 * (el_inv_mass[e2, 1] + el_inv_mass[e2, 3]) * i2 * di2)
+            dstiffness = 0.0
+            du1x, du1y, du1z = 0.0, 0.0, 0.0
             if e1 >= 0:
                 dw1x, dw1y, dw1z = _spin_tangent(e1, y, dY, m, dm, work, tw, o_part, o_vel, k)
                 du1x, du1y, du1z = tw.del_u[e1, 0, k], tw.del_u[e1, 1, k], tw.del_u[e1, 2, k]
                 di1 = tw.del_inv_len[e1, k]
+                dstiffness = 2.0 * (dm.seg_bend_k[s, k] * i1 * i2 / (i1 + i2)
+                                    + m.seg_bend_k[s] * (di1 * i2 * i2 + di2 * i1 * i1) / ((i1 + i2) * (i1 + i2)))
                 dot = u1x * u2x + u1y * u2y + u1z * u2z
                 ddot = du1x * u2x + du1y * u2y + du1z * u2z + u1x * du2x + u1y * du2y + u1z * du2z
                 m20 = el_inv_mass[e2, 0]
@@ -330,9 +342,17 @@ def _joints(y, dY, h, m, dm, work, tw, o_part, o_vel):
             drx = dr0x - dalong * u2x - along * du2x
             dry = dr0y - dalong * u2y - along * du2y
             drz = dr0z - dalong * u2z - along * du2z
-            den = 1.0 + c * h * w
-            dkk = (dm.seg_bend_c[s, k] * h - c * c * h * h * dw) / (den * den)
-            dhx, dhy, dhz = -dkk * rx - kk * drx, -dkk * ry - kk * dry, -dkk * rz - kk * drz
+            dbeta = 4.0 * h * h * (dstiffness * w + stiffness * dw) / (z * z) if z > 2.0 else 0.0
+            dcs = dm.seg_bend_c[s, k] + (dbeta * stiffness + beta * dstiffness) * h
+            dden = h * (dcs * w + cs * dw)
+            dkk = (dcs * h - cs * cs * h * h * dw) / (den * den)
+            dg = (dstiffness * h * den - stiffness * h * dden) / (den * den)
+            dtx = du1y * u2z - du1z * u2y + u1y * du2z - u1z * du2y
+            dty = du1z * u2x - du1x * u2z + u1z * du2x - u1x * du2z
+            dtz = du1x * u2y - du1y * u2x + u1x * du2y - u1y * du2x
+            dhx = -dkk * rx - kk * drx - dg * tx - g * dtx
+            dhy = -dkk * ry - kk * dry - dg * ty - g * dty
+            dhz = -dkk * rz - kk * drz - dg * tz - g * dtz
             dqx, dqy, dqz = drx + dw * hx + w * dhx, dry + dw * hy + w * dhy, drz + dw * hz + w * dhz
             if stop:  # the joint's rotation stopped: H - q / w
                 dhx -= dqx / w - qx * dw / (w * w)

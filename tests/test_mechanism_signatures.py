@@ -12,6 +12,9 @@ that law can be derived by hand, with the ropes as pure springs
   * rope bending damping c (N m s/rad) acts as a viscous damper
     4 c / L_e^2 (N s/m) on the particle of mass m: exponential envelope with
     amplitude decay rate 2 c / (m L_e^2) (1/s);
+  * rope bending stiffness EI (N m^2), a moment EI / L_e times the bend
+    at the joint, adds 4 EI / L_e^3 (N/m) to the sideways stiffness: the
+    squared angular frequency rises by 4 EI / (m L_e^3), undamped;
   * chain-link friction, a Coulomb moment mu T r_pin at the joint, acts as a
     sliding friction force 2 mu T r_pin / L_e: linear envelope losing
     4 F / k = 4 mu r_pin (m) per cycle, whatever the tension or length, and
@@ -61,6 +64,7 @@ RHO_AIR = 1.2  # kg/m^3, aero_drag's default
 TOP = -2.0  # z of the upper fixed points (m; K points down)
 SIGNATURE_TESTS = {
     "rope_bending_damping": "test_rope_bending_damping_decays_exponentially_at_the_joint_rate",
+    "rope_bending_stiffness": "test_rope_bending_stiffness_adds_four_EI_over_L_cubed_to_the_sideways_stiffness",
     "chain_link_friction": "test_chain_link_friction_decays_linearly_by_four_mu_r_per_cycle",
     "pulley_friction": "test_pulley_friction_decays_the_slide_linearly_by_the_capstan_limit",
     "pulley_inertia": "test_pulley_inertia_lowers_the_slide_frequency_by_the_added_mass_without_decay",
@@ -140,6 +144,24 @@ def test_rope_bending_damping_decays_exponentially_at_the_joint_rate(rig, amplit
     # viscous: the same rate at every amplitude (measured 5.251 and 5.274 1/s, 5.276 predicted)
     expected = 2.0 * c / (mass * element**2)
     assert env["models"]["exponential"]["decay_rate"] == pytest.approx(expected, rel=0.02)
+
+
+@pytest.mark.parametrize("share", [0.3, 1.0])
+def test_rope_bending_stiffness_adds_four_EI_over_L_cubed_to_the_sideways_stiffness(rig, share):
+    """A wire of the pendulum's stiffness (EA 1e5 N) as thick as the built-in rig's hoist rope, EI = share EA d^2 / 16
+    (0.3 and 1.0 N m^2): about a fifth and two thirds of the string's own sideways stiffness 2 T / L_e."""
+    props = {**_properties(rig, "hoist_rope"), "static_stiffness": 1.0e5, "viscous_stiffness": 5.0e4}
+    string, model, rest = _string("test_rope", props, strain=0.005)
+    mass, element = _string_particle(model, props)
+    t0, x0, _ = _pluck(string, model, rest, "rope_bending_damping:c=1e-9", 0.003, 0.5)
+    t, x, _ = _pluck(string, model, rest, f"rope_bending_stiffness:share={share}", 0.003, 0.5)
+    w0 = 2.0 * np.pi / _upward_crossing_periods(t0, x0).mean()
+    w = 2.0 * np.pi / _upward_crossing_periods(t, x).mean()
+    EI = share * props["static_stiffness"] * props["diameter"] ** 2 / 16.0
+    assert w**2 - w0**2 == pytest.approx(4.0 * EI / (mass * element**3), rel=0.01)
+    # a spring, not a damper: explicit at this step (s w dt^2 far below 2), it loses nothing
+    late = np.abs(x[t > t[-1] - 0.1]).max()
+    assert late == pytest.approx(0.003, rel=0.01)
 
 
 @pytest.mark.parametrize("strain", [0.005, 0.02])

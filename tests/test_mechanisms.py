@@ -143,9 +143,9 @@ def test_the_candidates_at_each_site_of_a_law_are_candidates_of_their_own(rig):
     assert every[:5] == [c["name"] for c in candidate_list()] and len(every) == len(set(every))
     assert {"sheave_bearing_damping@boom", "sheave_bearing_friction@hoist_cluster", "aero_drag@bucket",
             "chain_link_friction@left_drag_chain", "rope_bending_damping@dump_rope"} <= set(every)
-    # the dragline's bodies (two drag laws), chains, rings (four laws), ropes, rope groups (damping, stiffness
-    # both ways)
-    assert len(every) == 5 + 2 * 4 + 6 + 4 * 2 + 3 + 3 * 3
+    # the dragline's bodies (two drag laws), chains, rings (four laws), ropes (bending damping and stiffness), rope
+    # groups (damping, stiffness both ways)
+    assert len(every) == 5 + 2 * 4 + 6 + 4 * 2 + 3 * 2 + 3 * 3
 
 
 def test_sites_are_joined_only_where_every_pair_is_alike():

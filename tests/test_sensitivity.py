@@ -20,8 +20,8 @@ import math
 import numpy as np
 import pytest
 
-from dragline.simulate import (TangentUnavailable, apply_parameters, default_maneuver, load_rig, make_mechanism,
-                               simulate, simulate_sensitivities)
+from dragline.simulate import (Maneuver, TangentUnavailable, apply_parameters, assemble, default_maneuver, load_rig,
+                               make_mechanism, rig_from_dict, simulate, simulate_sensitivities, solve_statics)
 from dragline.simulate import _kernel
 from dragline.simulate._model import kernel_model
 from dragline.simulate._tangent import TANGENT_FIELDS, TangentModel, integrate_tangent, make_tangent_work, rhs_tangent_at
@@ -192,6 +192,45 @@ def test_air_drag_on_a_swinging_ball_matches_central_differences():
     _check_columns(build, np.zeros(1), np.array([0.5]), 1.0, ("drag",))
 
 
+def test_the_bending_stiffness_of_a_swinging_pendulums_wire_matches_central_differences():
+    """A generic law at a site: the wire's bending stiffness (a spring at each joint between its elements)."""
+    rig = load_rig("pendulum")
+    maneuver = default_maneuver(rig)
+
+    def build(x):
+        return rig, maneuver, (make_mechanism("rope_bending_stiffness", share=math.exp(x[0])),)
+
+    _check_columns(build, np.zeros(1), np.array([0.5]), 1.0, ("bending stiffness",))
+
+
+def test_a_bending_stiffness_past_the_explicit_limit_is_stable_and_differentiated():
+    """A rope as thick as its elements are long, stiff enough that the joint's z = 4 s w dt^2 passes 2, where the
+    spring's impulse turns as implicit as stability asks (``_kernel._joint_impulses``: beta = 1/2 - 1/z): plucked,
+    it swings without growing, and its tangent (beta's own derivative included) holds. z = 2.2 (beta 0.045), so
+    that the swing, damped at about beta z / 8 dt (150 1/s), lasts the window."""
+    props = {"kind": "rope", "weight_per_length": 0.0675, "static_stiffness": 1.0e5, "viscous_stiffness": 5.0e4,
+             "viscous_damping": 500.0, "diameter": 0.6}
+    rig = rig_from_dict({"g": 9.81, "fixed_points": {"top": [0.0, 0.0, -2.0], "bottom": [0.0, 0.0, -1.394]},
+                         "ropes": {"thick": {"start": "fixed.top", "end": "fixed.bottom", "length": 0.6,
+                                             "particles": 1, **props}}})
+    still = Maneuver([0.0])
+    mass, element = 0.0675 / 9.81 * 0.6, 0.303
+    # the joint's w is 4 / (m L_e^2) on a one-particle string between fixed points; s = EI / L_e
+    z_per_share = 4.0 * 1.0e5 * 0.6**2 / 16.0 / element * 4.0 / (mass * element**2)
+    h = 1.0 / RATE_HZ / simulate(rig, still, duration=0.01, rate_hz=RATE_HZ).substeps.max()
+    physics = (make_mechanism("rope_bending_stiffness", share=2.2 / (z_per_share * h**2)),)
+    model = assemble(rig, still, physics=physics)
+    rest = solve_statics(model).state
+    y0 = rest.copy()
+    y0[model.o_part] += 0.003
+    result = simulate(rig, still, physics=physics, initial_state=y0, duration=0.05, rate_hz=RATE_HZ)
+    assert 1.0 / RATE_HZ / result.substeps.max() == h
+    swing = np.abs(result.states[:, model.o_part] - rest[model.o_part])
+    assert swing.max() <= 0.003 * (1 + 1e-6) and swing[2] > 1e-4
+    _check_window(result, 0, 2, {"seg_bend_k": 0.1 * np.asarray(model.arrays["seg_bend_k"], float),
+                                 "state": _state_direction(result, 0, 11)})
+
+
 def test_linear_drag_on_a_swinging_ball_matches_central_differences():
     """A generic law at a site: linear drag on the ball alone (its coefficient)."""
     rig = load_rig("pendulum")
@@ -283,6 +322,7 @@ def test_ring_friction_while_the_rope_slips_matches_central_differences(mechanis
 @pytest.mark.parametrize("mechanism, value, fields", [
     ("rope_bending_damping", {"c": 0.05}, ("seg_bend_c",)),
     ("chain_link_friction", {"mu": 0.2}, ("seg_link_mu", "seg_link_r")),
+    ("rope_bending_stiffness", {"share": 10.0}, ("seg_bend_k",)),  # its limit: a column above the rounding
 ])
 def test_the_joints_impulses_match_central_differences(mechanism, value, fields):
     """The joints' sweep (bending damping, chain-link friction), along its coefficients, the bodies' masses and the

@@ -12,6 +12,7 @@ from ._linear_drag import LinearDrag
 from ._pulley_friction import PulleyFriction
 from ._pulley_inertia import PulleyInertia
 from ._rope_bending_damping import RopeBendingDamping
+from ._rope_bending_stiffness import RopeBendingStiffness
 from ._rope_damping_excess import RopeDampingExcess
 from ._rope_stiffness_deficit import RopeStiffnessDeficit
 from ._rope_stiffness_excess import RopeStiffnessExcess
@@ -21,6 +22,6 @@ from ._sheave_bearing_friction import SheaveBearingFriction
 __all__ = ["MECHANISMS", "MechanismType"]
 
 MECHANISMS = {kind.name: kind for kind in (ChainLinkFriction(), LinearDrag(), PulleyFriction(), PulleyInertia(),
-                                           RopeBendingDamping(), RopeDampingExcess(), RopeStiffnessExcess(),
-                                           RopeStiffnessDeficit(), SheaveBearingDamping(), SheaveBearingFriction(),
-                                           AeroDrag())}
+                                           RopeBendingDamping(), RopeBendingStiffness(), RopeDampingExcess(),
+                                           RopeStiffnessExcess(), RopeStiffnessDeficit(), SheaveBearingDamping(),
+                                           SheaveBearingFriction(), AeroDrag())}
