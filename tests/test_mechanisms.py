@@ -250,6 +250,29 @@ def test_a_lead_at_several_sites_and_the_laws_alike_to_it_are_split_into_their_s
     assert sets_to_split(problem, block, leading[1:], signatures, asked)["pulley_friction"] == out["pulley_friction"]
 
 
+def test_a_law_at_a_site_and_the_same_law_everywhere_are_both_refitted_jointly():
+    # Realistic seed 42: friction at both rings, asked where. The law at one ring was refitted jointly with the
+    # rig's parameters (as every law at a site is) and led the law everywhere, which was not: a site against
+    # everywhere on unequal terms. Now the law everywhere is refitted with its sites; a law whose sites were not
+    # fitted, one at a bound and one fitted at zero are not added.
+    from dragline.compare.diagnose._steps import joint_refit_list
+
+    def fit(value=0.01, at_bound=None):
+        return {"value": value, "at_bound": at_bound}
+
+    names = ["pulley_friction@hoist_cluster", "sheave_bearing_friction@hoist_cluster", "pulley_friction",
+             "chain_link_friction", "aero_drag", "aero_drag@bucket", "pulley_inertia", "pulley_inertia@boom"]
+    runnable = [{"name": n} for n in names]
+    scored = {n: fit() for n in names}
+    scored["aero_drag"] = fit(at_bound="upper")
+    scored["pulley_inertia@boom"] = fit(value=0.0)
+    eligible = [c for c in runnable if c["name"] in ("pulley_friction@hoist_cluster", "chain_link_friction")]
+    span = {"pulley_friction@hoist_cluster": 0.1, "chain_link_friction": 0.2}
+    refit = [c["name"] for c in joint_refit_list(runnable, scored, eligible, span)]
+    assert refit == ["pulley_friction@hoist_cluster", "sheave_bearing_friction@hoist_cluster", "aero_drag@bucket",
+                     "pulley_friction"]
+
+
 def test_a_set_of_sites_acts_at_each_of_them(rig):
     from dragline.simulate import assemble, make_mechanism
 
