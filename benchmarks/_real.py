@@ -139,8 +139,9 @@ def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="rop
     (issue 36: "recovered by the updating"), so no mechanism is tried: a
     named one would refit the length with it and answer another question.
     What comes back: both estimates and uncertainties, the distance between
-    them in the wrong fit's standard deviations, and each parameter's
-    identifiability.
+    them in the wrong fit's standard deviations, each parameter's
+    identifiability, and whether each fit converged (``converged`` false:
+    its cap of Jacobians ended it with more to gain).
     """
     import copy
     import tomllib
@@ -162,6 +163,7 @@ def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="rop
         fits[label] = {"rope_length": float(rig_doc["ropes"]["rope"]["length"]),
                        "estimate": entries[parameter]["estimate"], "uncertainty": entries[parameter]["uncertainty"],
                        "identifiable": {k: e["identifiable"] for k, e in entries.items()},
+                       "converged": out["calibration"]["converged"],
                        "seconds": time.perf_counter() - started}
         note(f"known answer, {label.replace('_', ' ')} ({fits[label]['rope_length']:.3f} m): "
              f"{parameter} {fits[label]['estimate']:.4f} +- {fits[label]['uncertainty']:.2g}")
@@ -204,7 +206,9 @@ def summary_lines(report):
                      f"the file's {right['rope_length']:.3f} m, {wrong['estimate']:.4f} +- {wrong['uncertainty']:.2g} "
                      f"from {wrong['rope_length']:.3f} m: "
                      + ("recovered" if known["recovered"] else "not recovered")
-                     + f" ({known['difference_in_sd']:.1f} sd apart)")
+                     + f" ({known['difference_in_sd']:.1f} sd apart)"
+                     + "".join(f"; the fit from {f['rope_length']:.3f} m stopped at its cap, not at a minimum"
+                               for f in (right, wrong) if f.get("converged") is False))
     for key, what in (("updated_better_share", "the updated model predicts the held-out flight better than the "
                                                "nominal one"),
                       ("named_better_share", "the named model predicts it better than the updated one")):

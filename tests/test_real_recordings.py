@@ -171,6 +171,7 @@ def test_bench_real_leaves_each_flight_out_and_predicts_it(tmp_path):
     assert known["right_file"]["rope_length"] == 3.0 and known["wrong_file"]["rope_length"] == pytest.approx(3.15)
     assert known["flights"] == ["rosbag_15", "rosbag_19"]
     assert known["recovered"] == (known["difference"] <= known["wrong_file"]["uncertainty"])
+    assert all(isinstance(known[f]["converged"], bool) for f in ("right_file", "wrong_file"))
 
 
 def test_rows_that_cannot_be_timed_are_repeats_and_glitches_and_nothing_else():

@@ -17,6 +17,7 @@ import pytest
 
 from dragline.compare.diagnose._hypotheses import MAX_SHIFT, Problem, channels_on
 from dragline.compare.diagnose._locate import DYNAMIC_CHANNELS
+from dragline.compare.diagnose._report import _calibration_lines
 from dragline.compare.diagnose._updating import (
     FD_FRACTION,
     model_error,
@@ -93,6 +94,9 @@ def test_updating_takes_the_misfit_down_to_the_noise(updated):
     # medium truth (measured by ``model_error`` on this maneuver, in noise units per channel).
     disc = np.mean([c["rms_noise"] ** 2 for c in updated["error_block"]["discretization"]["channels"].values()])
     assert best < 1.3 * (1.0 + disc) * problem.n_weighted
+    # At the noise floor a step has nothing left to gain: the gain rule ended it, not the cap.
+    assert it[-1]["stopped_by"] == "gain" and it[-1]["predicted_gain"] < it[-1]["least_gain"]
+    assert updated["result"]["block"]["converged"] is True
     # Static offsets were explained by the parameters, none left as a finding.
     assert updated["result"]["block"]["unexplained_offsets"] == []
 
@@ -158,6 +162,13 @@ def test_updating_taken_up_again_from_a_better_rig_reaches_the_full_fit(updated,
         return {"coords": coords, "rig": rig, "maneuver": maneuver, "initial_state": short["initial_state"]}
 
     assert chi2(short) > 1.5 * chi2(full)  # the cap did stop it short
+    # ... and says so: more to gain than its stop asks, so not converged.
+    last = short["block"]["iterations"][-1]
+    assert last["stopped_by"] == "cap" and last["predicted_gain"] > last["least_gain"]
+    assert short["block"]["converged"] is False
+    said = [line for line in _calibration_lines({"calibration": short["block"]}) if "not converged" in line]
+    assert len(said) == 1 and "cap of 2 Jacobians" in said[0]
+    assert not any("not converged" in line for line in _calibration_lines({"calibration": full["block"]}))
     directions = updated["directions"]
     resumed = resume_update(problem, ctx, updated["nominal_sim"], short, joint_at(0.5 * (short["coords"] + truth)),
                             directions, workers=2)

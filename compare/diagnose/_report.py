@@ -225,6 +225,11 @@ def _calibration_lines(doc):
                      f"(correlation {pair['correlation']:+.2f})")
     if cal.get("unexplained_offsets"):
         lines.append("  offsets no parameter explains: " + ", ".join(cal["unexplained_offsets"]))
+    if cal.get("converged") is False:
+        last = cal["iterations"][-1]
+        lines.append(f"  not converged: the fit stopped at its cap of {last['jacobians']} Jacobians with a next step "
+                     f"predicted to gain {last['predicted_gain']:.3g} chi2 (its stop asks less than "
+                     f"{last['least_gain']:.3g}): the estimates are where it stopped, not a minimum")
     me = doc.get("model_error") or {}
     for name in ("discretization", "time_step"):
         e = me.get(name)

@@ -719,7 +719,8 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
     spare = max(0, int(getattr(pool, "slots", 1)) - 1)
     best = {"objective": math.inf}
     jacobians = [0]
-    stop = {"now": False, "J": None}  # the stop decided at an accepted point; trf's last J
+    # The stop decided at an accepted point (``by``: the gain rule or the cap), the step's predicted gain, trf's last J
+    stop = {"now": False, "by": None, "gain": None, "J": None}
 
     def full(xa):
         coords = base.copy()
@@ -767,8 +768,11 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
         coords, (sim, state) = simulated(xa)
         # trf asks for a Jacobian only at an accepted point: the next step's gain is predicted here from the
         # last Jacobian (the new one would cost its simulations).
-        stop["now"] = jacobians[0] >= max_jacobians - 1 or (
-            stop["J"] is not None and predicted_gain(stop["J"], residuals[coords.tobytes()]) < enough())
+        gain = predicted_gain(stop["J"], residuals[coords.tobytes()]) if stop["J"] is not None else None
+        stop["gain"] = gain
+        low = gain is not None and gain < enough()
+        stop["by"] = "gain" if low else ("cap" if jacobians[0] >= max_jacobians - 1 else None)
+        stop["now"] = stop["by"] is not None
         if stop["now"] and not final_jacobian and stop["J"] is not None:
             return stop["J"]  # never used: the callback ends the fit before another step
         if jacobians[0] > 0:
@@ -802,10 +806,15 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
     if len(active) and start_gain >= enough():
         least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=scale[active], method="trf",
                       ftol=1e-8, xtol=1e-3, gtol=1e-8, max_nfev=4 * max_jacobians, callback=callback)
+    else:
+        stop.update(by="gain" if len(active) else "nothing to fit", gain=start_gain)
     fit.coords, fit.sim, fit.state = best["coords"], best["sim"], best["state"]
     fit.nuisance, fit.objective, fit.chi2 = best["nuisance"], best["objective"], best["chi2"]
+    # Which stop ended the fit: a fit ended by the cap had more to gain than its stop asks ("scipy": trf's own
+    # tolerances or evaluation count).
     fit.history.append({"evaluations": fit.n_sims, "jacobians": jacobians[0], "objective": fit.objective,
-                        "chi2": fit.chi2})
+                        "chi2": fit.chi2, "stopped_by": stop["by"] or "scipy", "predicted_gain": stop["gain"],
+                        "least_gain": enough() if len(active) else None})
     return fit
 
 
@@ -1181,6 +1190,9 @@ def _calibration_block(params, coords, cov, information, strength, offsets, ctx,
         "offsets_left": left,
         "unexplained_offsets": findings,
         "iterations": history,
+        # The cap ended it with more to gain than its stop asks: the estimates are where the fit stopped, not a
+        # minimum (docs/diagnosis.md, section 3).
+        "converged": (history[-1].get("stopped_by") != "cap") if history else None,
         "failed_sensitivities": failed,
         "method": ("bounded trust-region least squares (scipy trf) over the rig file's tolerances, with them as "
                    f"priors: sensitivities by finite differences over {FD_FRACTION:g} tolerance; per-channel offsets (prior "
