@@ -141,7 +141,8 @@ def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="rop
     What comes back: both estimates and uncertainties, the distance between
     them in the wrong fit's standard deviations, each parameter's
     identifiability, and whether each fit converged (``converged`` false:
-    its cap of Jacobians ended it with more to gain).
+    its cap of Jacobians or the trust region's own tolerances ended it with
+    more to gain).
     """
     import copy
     import tomllib
@@ -207,7 +208,7 @@ def summary_lines(report):
                      f"from {wrong['rope_length']:.3f} m: "
                      + ("recovered" if known["recovered"] else "not recovered")
                      + f" ({known['difference_in_sd']:.1f} sd apart)"
-                     + "".join(f"; the fit from {f['rope_length']:.3f} m stopped at its cap, not at a minimum"
+                     + "".join(f"; the fit from {f['rope_length']:.3f} m stopped short of a minimum"
                                for f in (right, wrong) if f.get("converged") is False))
     for key, what in (("updated_better_share", "the updated model predicts the held-out flight better than the "
                                                "nominal one"),

@@ -227,9 +227,14 @@ def _calibration_lines(doc):
         lines.append("  offsets no parameter explains: " + ", ".join(cal["unexplained_offsets"]))
     if cal.get("converged") is False:
         last = cal["iterations"][-1]
-        lines.append(f"  not converged: the fit stopped at its cap of {last['jacobians']} Jacobians with a next step "
-                     f"predicted to gain {last['predicted_gain']:.3g} chi2 (its stop asks less than "
-                     f"{last['least_gain']:.3g}): the estimates are where it stopped, not a minimum")
+        own = "evaluation count" if last.get("stopped_by") == "evaluations" else "tolerances"
+        how = (f"at its cap of {last['jacobians']} Jacobians" if last.get("stopped_by") == "cap"
+               else f"on the trust region's own {own}")
+        gain = last.get("predicted_gain")
+        ahead = (f" with a next step predicted to gain {gain:.3g} chi2 (its stop asks less than "
+                 f"{last['least_gain']:.3g})" if gain is not None else "")
+        lines.append(f"  not converged: the fit stopped {how}{ahead}: the estimates are where it stopped, "
+                     "not a minimum")
     me = doc.get("model_error") or {}
     for name in ("discretization", "time_step"):
         e = me.get(name)

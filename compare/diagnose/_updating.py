@@ -804,16 +804,18 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
         start_gain = predicted_gain(start[coords0.tobytes()], residuals[coords0.tobytes()])
     fit.history[0]["predicted_gain"] = start_gain
     if len(active) and start_gain >= enough():
-        least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=scale[active], method="trf",
-                      ftol=1e-8, xtol=1e-3, gtol=1e-8, max_nfev=4 * max_jacobians, callback=callback)
+        ended = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=scale[active], method="trf",
+                              ftol=1e-8, xtol=1e-3, gtol=1e-8, max_nfev=4 * max_jacobians, callback=callback)
+        if stop["by"] is None:
+            stop["by"] = "evaluations" if ended.status == 0 else "tolerance"  # trf's own stops
     else:
         stop.update(by="gain" if len(active) else "nothing to fit", gain=start_gain)
     fit.coords, fit.sim, fit.state = best["coords"], best["sim"], best["state"]
     fit.nuisance, fit.objective, fit.chi2 = best["nuisance"], best["objective"], best["chi2"]
-    # Which stop ended the fit: a fit ended by the cap had more to gain than its stop asks ("scipy": trf's own
-    # tolerances or evaluation count).
+    # Which stop ended the fit: the gain rule, the cap, or trf's own evaluation count ("evaluations") or
+    # tolerances ("tolerance"); all but the first leave a fit that had more to gain than its stop asks.
     fit.history.append({"evaluations": fit.n_sims, "jacobians": jacobians[0], "objective": fit.objective,
-                        "chi2": fit.chi2, "stopped_by": stop["by"] or "scipy", "predicted_gain": stop["gain"],
+                        "chi2": fit.chi2, "stopped_by": stop["by"], "predicted_gain": stop["gain"],
                         "least_gain": enough() if len(active) else None})
     return fit
 
@@ -1190,9 +1192,9 @@ def _calibration_block(params, coords, cov, information, strength, offsets, ctx,
         "offsets_left": left,
         "unexplained_offsets": findings,
         "iterations": history,
-        # The cap ended it with more to gain than its stop asks: the estimates are where the fit stopped, not a
-        # minimum (docs/diagnosis.md, section 3).
-        "converged": (history[-1].get("stopped_by") != "cap") if history else None,
+        # Only the gain rule says the next step has nothing to gain: stopped by the cap or by trf's own tolerances
+        # with more to gain, the estimates are where the fit stopped, not a minimum (docs/diagnosis.md, section 3).
+        "converged": history[-1].get("stopped_by") in ("gain", "nothing to fit") if history else None,
         "failed_sensitivities": failed,
         "method": ("bounded trust-region least squares (scipy trf) over the rig file's tolerances, with them as "
                    f"priors: sensitivities by finite differences over {FD_FRACTION:g} tolerance; per-channel offsets (prior "
