@@ -132,3 +132,80 @@ def test_the_largest_of_many_oscillators_and_a_fast_decay():
         i += len(b)
     q, _ = np.linalg.qr(np.random.default_rng(0).normal(size=(120, 120)))
     assert np.abs(largest_eigenvalues(q @ d @ q.T)).max() == pytest.approx(59000.0, rel=1e-10)
+
+
+def _pendulum_stiffened(factor):
+    """The built-in pendulum with its wire's stiffness times ``factor``, and its maneuver."""
+    from dragline.simulate import apply_parameters, default_maneuver
+
+    rig = load_rig("pendulum")
+    maneuver = default_maneuver(rig)
+    param = [p for p in rig.tolerances if p.name == "ropes.wire_rope.static_stiffness"]
+    return apply_parameters(rig, maneuver, param, np.array([np.log(factor)]))
+
+
+def test_the_frozen_steps_factor_halves_in_octaves_only_past_the_safety_margin():
+    from dragline.simulate._simulate import frozen_step_factor
+    from dragline.simulate._time_step import VERLET_SAFETY
+
+    assert frozen_step_factor(2.0) == 1.0  # a softer rig: the frozen step is well inside its limit
+    assert frozen_step_factor(VERLET_SAFETY * 1.001) == 1.0
+    assert frozen_step_factor(VERLET_SAFETY * 0.999) == 0.5
+    assert frozen_step_factor(VERLET_SAFETY / 2) == 0.5  # exactly at the limit again, not beyond it
+    assert frozen_step_factor(VERLET_SAFETY / 2 * 0.999) == 0.25
+    for ratio in np.geomspace(0.01, 1.0, 57):
+        # never beyond the rig's own limit (the reference's stability step is the safety fraction of its limit)
+        assert VERLET_SAFETY * frozen_step_factor(ratio) / ratio <= 1.0 + 1e-12
+
+
+def test_a_frozen_step_holds_over_a_fits_rigs_and_halves_on_a_much_stiffer_one():
+    from dragline.simulate import simulate
+
+    rig, maneuver = _pendulum_stiffened(1.0)
+    reference = simulate(rig, maneuver, duration=1.0, rate_hz=100.0)
+    per_record = int(reference.substeps[0])
+    assert (reference.substeps == per_record).all()  # a taut pendulum: one step throughout
+    runs = {}
+    for factor in (0.25, 1.2, 2.0):
+        r, m = _pendulum_stiffened(factor)
+        runs[factor] = (simulate(r, m, duration=1.0, rate_hz=100.0, dt=reference.dt,
+                                 dt_reference=reference.stability_step),
+                        simulate(r, m, duration=1.0, rate_hz=100.0))
+    # Softer, and 1.2 times stiffer (within the margin): the same steps as the reference's, where the rig's own
+    # tracked runs take other counts.
+    for factor in (0.25, 1.2):
+        frozen, own = runs[factor]
+        assert (frozen.substeps == per_record).all(), factor
+        assert not (own.substeps == per_record).all(), factor
+    # Twice as stiff: past the margin, the step halved, and as accurate as the rig's own tracked step.
+    frozen, own = runs[2.0]
+    assert (frozen.substeps == 2 * per_record).all()
+    assert own.substeps.max() < 2 * per_record
+    np.testing.assert_allclose(frozen.states[:, :3], own.states[:, :3], atol=1e-5)
+
+
+def test_a_frozen_step_makes_the_motion_a_smooth_function_of_a_parameter():
+    """Over stiffnesses 0.25 % apart, across the one at which the rig's own tracked step changes its count, the
+    frozen run's end state bends smoothly (its third differences a fraction of a percent of its second), where
+    the tracked run's kinks at the change by several percent: what a fit's finite differences read as slope."""
+    from dragline.simulate import simulate
+
+    rig, maneuver = _pendulum_stiffened(1.0)
+    reference = simulate(rig, maneuver, duration=1.0, rate_hz=100.0)
+    counts, tracked, frozen = [], [], []
+    for factor in 1.0 + 0.0025 * np.arange(9):
+        r, m = _pendulum_stiffened(factor)
+        own = simulate(r, m, duration=1.0, rate_hz=100.0)
+        counts.append(int(own.substeps[0]))
+        tracked.append(own.states[-1])
+        frozen.append(simulate(r, m, duration=1.0, rate_hz=100.0, dt=reference.dt,
+                               dt_reference=reference.stability_step).states[-1])
+    assert len(set(counts)) == 2  # the tracked step changes its count once over these rigs
+    j = int(np.argmax(np.abs(frozen[-1] - frozen[0])))  # the coordinate the stiffness moves most
+
+    def kink(ends):
+        x = np.array([e[j] for e in ends])
+        return np.abs(np.diff(x, 3)).max() / np.abs(np.diff(x, 2)).mean()
+
+    assert kink(frozen) < 0.01
+    assert kink(tracked) > 0.03
