@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import time as _clock
 from dataclasses import dataclass, field
 
@@ -16,7 +15,7 @@ from ._model import assemble
 from ._release import POSE_COORDINATES, let_go
 from ._rig import load_rig
 from ._statics import solve_statics
-from ._time_step import SPECTRAL_SAFETY, VERLET_SAFETY, start_time_step
+from ._time_step import start_time_step
 from ._tracked import MAX_STEPS, RK4, VERLET, integrate_tracked
 from ._table import trajectory_columns
 
@@ -71,10 +70,6 @@ class SimulationResult:
     substeps : ndarray (N - 1,) of int, optional
         Verlet steps taken in each record interval (the schedule
         ``sensitivities`` differentiates on); None for RK4.
-    stability_step : float
-        The step the spectrum allows at the start (``start_time_step``, s),
-        where it was computed (a tracked run, or a fixed one given a
-        ``dt_reference``); NaN otherwise.
     """
 
     time: np.ndarray
@@ -86,7 +81,6 @@ class SimulationResult:
     dt_start: float = float("nan")
     timings: dict = field(default_factory=dict)
     substeps: np.ndarray | None = None
-    stability_step: float = float("nan")
 
     @property
     def table(self):
@@ -346,7 +340,6 @@ def simulate(
     statics_guess=None,
     integrator="verlet",
     release=None,
-    dt_reference=None,
 ):
     """Simulate a maneuver from static equilibrium, or from a release.
 
@@ -369,15 +362,6 @@ def simulate(
         interval. By default the step is the integrator's stability limit at
         the start (``start_time_step``), cut as the rig stiffens
         (``integrate_tracked``).
-    dt_reference : float, optional
-        With ``dt``: the stability step (``SimulationResult.stability_step``)
-        of the rig the fixed step was chosen on, for a step frozen over a
-        fit (``compare.diagnose``: every model of a diagnosis at its nominal
-        run's smallest step). A rig stiff enough that ``dt`` would pass its
-        stability limit takes it halved as often as needed
-        (``frozen_step_factor``); where that still blows up (a rope turned
-        slack that the reference's run never had to refine), the default
-        tracked step.
     dissipation : bool
         False: visco-elastic relaxation off (energy-conserving model).
     initial_state : ndarray, optional
@@ -459,45 +443,12 @@ def simulate(
     if needed > MAX_RECORD_BYTES:
         raise ValueError(f"{n_records} records of {model.n_state} states ({duration:g} s at {rate_hz:g} Hz) "
                          f"need {needed / 2**30:.3g} GiB, more than the {MAX_RECORD_BYTES / 2**30:g} GiB allowed")
-    clock = _clock.perf_counter()
-    stability_step = float("nan")
-    if dt is not None and dt_reference is not None:
-        stability_step = float(start_time_step(model, y0, t0, integrator=integrator)[0])
-        frozen = float(dt) * frozen_step_factor(stability_step / float(dt_reference), integrator)
-        try:
-            records, schedule, step, steps, dt_start, _ = _integrate(model, y0, t0, out_dt, n_records, frozen,
-                                                                     integrator, max_speed)
-        except SimulationError:
-            # A rope turned slack on this rig where it did not on the reference's, and a fixed step does not
-            # refine at that kink: the default step, which does.
-            records, schedule, step, steps, dt_start, _ = _integrate(model, y0, t0, out_dt, n_records, None,
-                                                                     integrator, max_speed)
-    else:
-        records, schedule, step, steps, dt_start, stability_step = _integrate(model, y0, t0, out_dt, n_records, dt,
-                                                                              integrator, max_speed)
-    integrate_s = _clock.perf_counter() - clock
-    time = t0 + np.arange(records.shape[0]) * out_dt
-    return SimulationResult(time=time, states=records, model=model, dt=step, equilibrium_residual=residual,
-                            steps=steps, dt_start=dt_start,
-                            timings={"statics_s": statics_s, "integrate_s": integrate_s},
-                            substeps=None if schedule is None else schedule[: records.shape[0] - 1],
-                            stability_step=stability_step)
-
-
-def _integrate(model, y0, t0, out_dt, n_records, dt, integrator, max_speed):
-    """Records from ``y0``: at the fixed step ``dt``, or tracked (``integrate_tracked``) when it is None.
-
-    Returns ``(records, schedule, step, steps, dt_start, stability_step)``: the Verlet steps per record interval
-    (None for RK4), the smallest step, their count, the first step and the spectrum's step at the start (NaN at a
-    fixed step). Raises ``SimulationError`` on a blow-up.
-    """
     m = model.kernel_tuple()
     work = _kernel.make_work(m)
     method = INTEGRATORS[integrator]
-    stability_step = float("nan")
+    clock = _clock.perf_counter()
     if dt is None:
         dt0, lam0 = start_time_step(model, y0, t0, integrator=integrator)
-        stability_step = float(dt0)
         records, substeps, status, bad_time, bad_index = integrate_tracked(
             y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, MAX_STEPS, method
         )
@@ -528,20 +479,9 @@ def _integrate(model, y0, t0, out_dt, n_records, dt, integrator, max_speed):
         raise SimulationError(
             f"simulation blew up at t = {bad_time:.4f} s: {what} in {model.describe_state_index(bad_index)}"
         )
-    return records, schedule, step, steps, dt_start, stability_step
-
-
-def frozen_step_factor(ratio, integrator="verlet"):
-    """What a step frozen on a reference rig is multiplied by on a rig whose stability step is ``ratio`` times the
-    reference's: 1 while the step stays within the rig's stability limit, else halved as often as needed.
-
-    The frozen step is at most the reference's stability step, the safety fraction ``s`` of its limit, so on
-    this rig it is at most ``s / ratio`` of the limit. Halving in whole octaves, not cutting in proportion,
-    keeps the step the same over every rig of a fit up to ``1 / s`` times stiffer (``ratio`` down to ``s``,
-    about 1.4 times the stiffness): the count of steps, and with it the integration's error, then does not
-    jump as a parameter moves, which a fit's finite differences would read as a slope.
-    """
-    safety = VERLET_SAFETY if integrator == "verlet" else SPECTRAL_SAFETY
-    if not ratio < safety:
-        return 1.0
-    return 0.5 ** math.ceil(math.log2(safety / ratio) - 1e-12)
+    integrate_s = _clock.perf_counter() - clock
+    time = t0 + np.arange(records.shape[0]) * out_dt
+    return SimulationResult(time=time, states=records, model=model, dt=step, equilibrium_residual=residual,
+                            steps=steps, dt_start=dt_start,
+                            timings={"statics_s": statics_s, "integrate_s": integrate_s},
+                            substeps=None if schedule is None else schedule[: records.shape[0] - 1])

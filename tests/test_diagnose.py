@@ -431,12 +431,8 @@ def test_friction_at_one_sheave_is_named_at_that_sheave(nominal_run):
     # its effect at the rig's bounds), so the law is tried at each ring (pulley_friction@*), and each site is
     # refitted jointly with the rig's parameters whatever its first score; the two rings' signatures are not
     # alike, so each stays a candidate of its own.
-    # The truth at the step the diagnosis simulates every model at (its nominal run's smallest): this test is of
-    # where, and the friction's value is to be read as the model makes it. At the low level's default step, four
-    # times as long over most of the dig, the friction's signature differs by 4-11 % RMS and the value read at the
-    # frozen step is 0.040 (docs/diagnosis.md, section 3).
     run = simulate(physics=[parse_physics("pulley_friction@boom:mu=0.05")], initial_state=nominal_run.states[0],
-                   discretization=LEVEL, dt=nominal_run.dt)
+                   discretization=LEVEL)
     result = diagnose(noisy(run.table, seed=13), candidates=["pulley_friction@*"], workers=2, discretization=LEVEL)
     doc = result.doc
     assert doc["verdict"] == "pulley_friction@boom", doc["reason"]

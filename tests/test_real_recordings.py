@@ -151,10 +151,7 @@ def test_a_flights_row_rate_is_its_camera_topic_count_over_the_bags_duration():
 def test_bench_real_leaves_each_flight_out_and_predicts_it(tmp_path):
     from dragline.benchmarks import bench_real
 
-    # The first 600 of each excerpt's 900 rows (20 s: the hover and the first moves): every model of a diagnosis
-    # now runs at its nominal run's smallest step, on these flights about 2.8 times the steps of the default one,
-    # and the whole benchmark on 900 rows took 668 s here (docs/real-recordings.md).
-    report = bench_real(_flights_folder(tmp_path), rows=600, figure=tmp_path / "held_out.png")
+    report = bench_real(_flights_folder(tmp_path), figure=tmp_path / "held_out.png")
     assert (tmp_path / "held_out.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert [(s["held_out"], s["fitted"]) for s in report["splits"]] == [("rosbag_15", ["rosbag_19"]),
                                                                         ("rosbag_19", ["rosbag_15"])]

@@ -18,7 +18,6 @@ import pytest
 from dragline.compare.diagnose._hypotheses import MAX_SHIFT, Problem, channels_on
 from dragline.compare.diagnose._locate import DYNAMIC_CHANNELS
 from dragline.compare.diagnose._report import _calibration_lines
-from dragline.compare.diagnose._trials import fixed_step
 from dragline.compare.diagnose._updating import (
     FD_FRACTION,
     model_error,
@@ -39,15 +38,6 @@ def _channels(result, channels):
     return np.column_stack([np.asarray(result.table[c], float) for c in channels])
 
 
-def _frozen_nominal(rig, maneuver, duration):
-    """The nominal run as a diagnosis makes it (``_steps``): at the smallest step its own tracked run took, every
-    model of the fit then at that step (``fixed_step``); with the context's keys that say so."""
-    tracked = simulate(rig, maneuver, duration=duration)
-    run = simulate(rig, maneuver, duration=duration, dt=tracked.dt, initial_state=tracked.states[0])
-    return run, {"nominal_dt": float(tracked.dt), "frozen_dt": float(tracked.dt),
-                 "frozen_dt_reference": float(tracked.stability_step)}
-
-
 @pytest.fixture(scope="module")
 def updated(rig):
     small = dataclasses.replace(rig, tolerances=tuple(p for p in rig.tolerances if p.name in KEPT))
@@ -55,7 +45,7 @@ def updated(rig):
     truth_coords = np.array([TRUTH_IN_TOLERANCES[p.name] * p.tolerance for p in params])
     maneuver = dig_maneuver()
     truth = simulate(*apply_parameters(small, maneuver, params, truth_coords), "medium", duration=DURATION)
-    nominal, step = _frozen_nominal(small, maneuver, DURATION)
+    nominal = simulate(small, maneuver, duration=DURATION)
     channels = [c for c in DYNAMIC_CHANNELS if c in nominal.table.columns]
     sigma = np.array([NOISE["angle"] if "pitch" in c else NOISE["position"] for c in channels])
     rng = np.random.default_rng(5)
@@ -65,7 +55,7 @@ def updated(rig):
     problem = Problem(nominal.time, measured, sigma, t_stop=dig_maneuver().end_time)
     ctx = {"rig": small, "maneuver": maneuver, "discretization": "baseline", "duration": DURATION,
            "rate_hz": 200.0, "initial_state": nominal.states[0], "time": nominal.time, "channels": channels,
-           "parameters": params, "reported_rig": small, **step}
+           "nominal_dt": float(nominal.dt), "parameters": params, "reported_rig": small}
     nominal_sim = _channels(nominal, channels)
     directions, error_block = model_error(problem, ctx, nominal_sim, workers=2)
     result = update_model(problem, ctx, nominal_sim, directions, workers=2)
@@ -121,8 +111,7 @@ def test_the_sensitivities_updating_returns_are_differences_at_the_point_it_retu
         x = result["coords"].copy()
         x[i] += FD_FRACTION * tol[i]
         moved = simulate(*apply_parameters(ctx["rig"], ctx["maneuver"], params, x), "baseline",
-                         duration=DURATION, rate_hz=ctx["rate_hz"], statics_guess=result["initial_state"],
-                         **fixed_step(ctx))
+                         duration=DURATION, rate_hz=ctx["rate_hz"], statics_guess=result["initial_state"])
         fresh = (channels_on(moved, ctx) - result["sim"]) / (FD_FRACTION * tol[i])
         # (The statics start from another guess: equal to about 1e-7 of the largest.)
         np.testing.assert_allclose(result["sensitivities"][i], fresh, rtol=0, atol=1e-5 * np.abs(fresh).max())
@@ -143,7 +132,7 @@ def test_model_error_is_measured_on_the_maneuver(updated):
 def test_a_mechanism_signature_is_compared_with_every_parameter(updated):
     ctx, result = updated["ctx"], updated["result"]
     run = simulate(result["rig"], result["maneuver"], physics=[parse_physics("aero_drag:cd=5")],
-                   duration=DURATION, initial_state=result["initial_state"], **fixed_step(ctx))
+                   duration=DURATION, initial_state=result["initial_state"])
     signature = _channels(run, ctx["channels"]) - result["sim"]
     corr = nuisance_correlation(updated["problem"], signature, result, most=4)
     assert len(corr) == 4 and all(-1.0 <= e["correlation"] <= 1.0 for e in corr)
@@ -360,7 +349,7 @@ def test_the_joint_refit_fits_the_mechanism_with_the_parameters_not_after_them(f
     truth_coords = np.array([moved[p.name] for p in params]) * tol
     drag = make_mechanism("aero_drag", cd=0.9)
     truth = simulate(*apply_parameters(crane, maneuver, params, truth_coords), "medium", [drag], duration=10.0)
-    nominal, step = _frozen_nominal(crane, maneuver, 10.0)
+    nominal = simulate(crane, maneuver, duration=10.0)
     channels = [f"{b}.{a}" for b in crane.bodies for a in ("x", "z", "pitch")]
     sigma = np.array([NOISE["angle"] if "pitch" in c else NOISE["position"] for c in channels])
     recorded = channels_on(truth, {"time": nominal.time, "channels": channels, "reported_rig": crane})
@@ -368,7 +357,7 @@ def test_the_joint_refit_fits_the_mechanism_with_the_parameters_not_after_them(f
     problem = Problem(nominal.time, measured, sigma, t_stop=4.0)
     ctx = {"rig": crane, "maneuver": maneuver, "discretization": "baseline", "duration": 10.0, "rate_hz": 200.0,
            "initial_state": nominal.states[0], "time": nominal.time, "channels": channels,
-           "parameters": params, "reported_rig": crane, **step}
+           "nominal_dt": float(nominal.dt), "parameters": params, "reported_rig": crane}
     nominal_sim = _channels(nominal, channels)
     directions, _ = model_error(problem, ctx, nominal_sim, workers=2)
     update = update_model(problem, ctx, nominal_sim, directions, workers=2)
@@ -384,6 +373,6 @@ def test_the_joint_refit_fits_the_mechanism_with_the_parameters_not_after_them(f
     # as the recording is (the rig file's mass centres).
     alone = rig_alone_channels(ctx, joint)
     plain = channels_on(simulate(*apply_parameters(crane, maneuver, params, joint["coords"]), duration=10.0,
-                                 statics_guess=joint["initial_state"], **fixed_step(ctx)), ctx)
+                                 statics_guess=joint["initial_state"]), ctx)
     assert np.abs(alone - plain).max() < 1e-6
     assert np.abs(alone - joint["sim"]).max() > 1e3 * np.abs(alone - plain).max()

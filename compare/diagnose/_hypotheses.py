@@ -80,7 +80,7 @@ from ...simulate import (
     simulate,
     stable_time_step,
 )
-from ._trials import first_maneuver, fixed_step, split_channel, stack_trials, trial_contexts
+from ._trials import first_maneuver, split_channel, stack_trials, trial_contexts
 
 __all__ = [
     "candidate_list",
@@ -434,9 +434,8 @@ def simulate_channels(name, main, value, ctx=None, discretization=None):
         start = {"initial_state": trial["initial_state"]} if discretization is None else {}
         try:
             level = c["discretization"] if discretization is None else discretization
-            step = fixed_step(trial) if discretization is None else {}
             res = simulate(c["rig"], trial["maneuver"], level, physics,
-                           duration=trial["duration"], rate_hz=c["rate_hz"], **start, **step)
+                           duration=trial["duration"], rate_hz=c["rate_hz"], **start)
         except (SimulationError, StaticsError, FloatingPointError):
             return None
         sims.append(channels_on(res, trial))

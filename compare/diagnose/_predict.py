@@ -28,7 +28,6 @@ from scipy.optimize import least_squares
 from ...simulate import SimulationError, StaticsError, apply_parameters, make_mechanism, simulate
 from ._hypotheses import channels_on
 from ._recording import free_offsets
-from ._trials import fixed_step
 
 __all__ = ["held_out_entry", "HeldOut"]
 
@@ -88,7 +87,7 @@ def _conditioned(aligned, window, rig, maneuver, physics, discretization, offset
         r, m = apply_parameters(rig, maneuver, own, z * tol)
         try:
             run = simulate(r, m, discretization, physics, duration=window + 2.0 / ctx["rate_hz"],
-                           rate_hz=ctx["rate_hz"], statics_guess=statics_guess, **fixed_step(ctx))
+                           rate_hz=ctx["rate_hz"], statics_guess=statics_guess)
         except (SimulationError, StaticsError, FloatingPointError):
             return np.full(measured.size + z.size, 1e6)
         e = measured - channels_on(run, short)
@@ -140,7 +139,7 @@ def held_out_entry(state, name, aligned, maneuver):
             if window > 0:
                 rig, man = _conditioned(aligned, window, rig, man, physics, state.discretization, offset_free, guess)
             run = simulate(rig, man, state.discretization, physics, duration=ctx["duration"], rate_hz=ctx["rate_hz"],
-                           statics_guess=guess, **fixed_step(ctx))
+                           statics_guess=guess)
         except (SimulationError, StaticsError, FloatingPointError):
             rms[label] = None
             continue

@@ -67,7 +67,7 @@ from ._scale import machine_scale
 from ._second_round import second_round
 from ._start import estimate_start, start_parameters
 from ._state import NullTest, Recording
-from ._trials import SEPARATOR, STEP_KEYS, each_trials_own, first_maneuver
+from ._trials import SEPARATOR, each_trials_own, first_maneuver
 from ._sites import drop_law_twins, join_alike_sites, screen_sites, sets_to_split
 from ._summary import significant_updates, stated_uncertainty, structure_energy
 from ._updating import (
@@ -178,8 +178,7 @@ def _stacked(state, trials):
                parameters=each_trials_own(state.rig.tolerances, names) + starts,
                initial_state=tuple(t["nominal_run"].states[0] for t in trials),
                trials=tuple({"name": name, "time": t["time"], "channels": t["channels"], "rows": t["time"].size,
-                             "duration": t["ctx"]["duration"], "columns": cols,
-                             **{k: t["ctx"][k] for k in STEP_KEYS}}
+                             "duration": t["ctx"]["duration"], "columns": cols}
                             for name, t, cols in zip(names, trials, columns)))
     problem = Problem(time, values, noise, t_stops, offset_free=free_offsets(channels, state.shared_frame))
     return replace(state, recording=recording, nominal_run=first["nominal_run"], nominal_sim=nominal_sim,
@@ -209,7 +208,7 @@ def _aligned_trial(state, measured, maneuver, rate=None):
     # Long enough for any clock offset searched.
     record = float(t_meas[-1] - t_meas[0])
     _note(state, "simulating the nominal model")
-    nominal_run = _at_fixed_step(rig, maneuver, state.discretization, record + MAX_OFFSET, rate)
+    nominal_run = simulate(rig, maneuver, state.discretization, [], duration=record + MAX_OFFSET, rate_hz=rate)
     nominal_table = nominal_run.table
     offset, estimate, t_stop, stop_method = _clock(measured, nominal_table, rig, maneuver)
     if rig.winches and not estimate.get("ropes"):
@@ -250,8 +249,7 @@ def _aligned_trial(state, measured, maneuver, rate=None):
     dt = float(time[1] - time[0])
     ctx = {"rig": rig, "maneuver": maneuver, "discretization": state.discretization, "duration": duration,
            "rate_hz": rate, "initial_state": nominal_run.states[0], "time": time, "channels": channels,
-           "nominal_dt": float(nominal_run.dt), "frozen_dt": float(nominal_run.dt),
-           "frozen_dt_reference": float(nominal_run.stability_step),
+           "nominal_dt": float(nominal_run.dt),
            "parameters": tuple(rig.tolerances) + (start_parameters(maneuver.start, estimate["start"])
                                                   if "start" in estimate else ()),
            # The recording was reconstructed with this rig's geometry (``channels_on``).
@@ -287,18 +285,9 @@ def _started(state, measured, keep, time, maneuver, nominal_run, estimate, rate)
         raise ValueError("a start read from the recording needs a tracked body (its x, y and z)")
     _note(state, "the trial starts where its first samples have " + ", ".join(start))
     maneuver = replace(maneuver, start=start)
-    run = _at_fixed_step(state.rig, maneuver, state.discretization, float(nominal_run.time[-1] - t0), rate)
+    run = simulate(state.rig, maneuver, state.discretization, [], duration=float(nominal_run.time[-1] - t0),
+                   rate_hz=rate)
     return maneuver, run, dict(estimate, start=report)
-
-
-def _at_fixed_step(rig, maneuver, discretization, duration, rate):
-    """The nominal run at the step every model of the diagnosis takes on this trial (``_trials.fixed_step``): the
-    smallest its own tracked run took, found by that run; its ``stability_step`` is the tracked run's, the
-    reference a stiffer rig's step is cut by."""
-    tracked = simulate(rig, maneuver, discretization, [], duration=duration, rate_hz=rate)
-    fixed = simulate(rig, maneuver, discretization, [], duration=duration, rate_hz=rate, dt=tracked.dt,
-                     initial_state=tracked.states[0])
-    return replace(fixed, stability_step=tracked.stability_step, equilibrium_residual=tracked.equilibrium_residual)
 
 
 def _clock(measured, nominal_table, rig, maneuver):

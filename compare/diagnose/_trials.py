@@ -13,8 +13,7 @@ end stays finite). What stays shared is the fine clock shift (at most
 
 A simulation context (``ctx``) of several trials holds ``trials`` (one dict
 per trial: ``name``, ``time``, ``channels``, ``duration``, ``rows``,
-``columns``, and its frozen step: ``frozen_dt``, ``frozen_dt_reference``,
-see ``fixed_step``) and tuples in ``maneuver`` and ``initial_state``;
+``columns``) and tuples in ``maneuver`` and ``initial_state``;
 ``trial_contexts`` gives each trial's context as a one-trial diagnosis
 would have it.
 """
@@ -27,34 +26,10 @@ import numpy as np
 
 from ...simulate import apply_parameters
 
-__all__ = ["SEPARATOR", "STEP_KEYS", "fixed_step", "split_channel", "trial_contexts", "stack_trials",
-           "joined_states", "apply_to_trials", "first_maneuver", "each_trials_own"]
+__all__ = ["SEPARATOR", "split_channel", "trial_contexts", "stack_trials", "joined_states", "apply_to_trials",
+           "first_maneuver", "each_trials_own"]
 
 SEPARATOR = "/"
-# A trial's frozen integration step (``fixed_step``): its own, in a context of several.
-STEP_KEYS = ("frozen_dt", "frozen_dt_reference")
-
-
-def fixed_step(ctx, factor=1.0):
-    """``simulate``'s keywords for a model of this trial at the diagnosis's frozen step.
-
-    Every model a diagnosis simulates at the context's discretization runs
-    at one fixed step per trial: its nominal run's smallest
-    (``frozen_dt``), halved on a rig much stiffer at the start than the
-    nominal one (``frozen_dt_reference``: the nominal's stability step;
-    ``simulate``'s ``dt_reference``). The default step is chosen per
-    simulation (the spectrum at the start, cut as the rig stiffens, refined
-    where a rope turns slack), so its count of steps - and with it the
-    integration's error - jumps as a parameter moves: a fit's objective is
-    then rough, on a real recording whose misfit is far above the noise by
-    as much as the gain a fit's stop asks (docs/diagnosis.md, section 3).
-    ``factor`` scales the step (the model's own error at half of it). A
-    context without a frozen step (one built by hand) keeps the default
-    step, or ``factor`` times its nominal run's smallest (``nominal_dt``).
-    """
-    if ctx.get("frozen_dt") is None:
-        return {} if factor == 1.0 else {"dt": ctx["nominal_dt"] * factor}
-    return {"dt": ctx["frozen_dt"] * factor, "dt_reference": ctx.get("frozen_dt_reference")}
 
 
 def split_channel(channel):
@@ -72,8 +47,7 @@ def trial_contexts(ctx, states=None):
     states = ctx["initial_state"] if states is None else states
     if "trials" not in ctx:
         return [dict(ctx, initial_state=states)]
-    return [dict(ctx, maneuver=m, initial_state=s, time=t["time"], channels=t["channels"], duration=t["duration"],
-                 **{k: t[k] for k in STEP_KEYS if k in t})
+    return [dict(ctx, maneuver=m, initial_state=s, time=t["time"], channels=t["channels"], duration=t["duration"])
             for t, m, s in zip(ctx["trials"], ctx["maneuver"], states)]
 
 

@@ -65,7 +65,7 @@ from .._compare import channel_kind
 from ._heterogeneity import between_trials, widened
 from ._hypotheses import _init, _pool, bounded_solve, channels_on
 from ._scale import REFERENCE
-from ._trials import apply_to_trials, fixed_step, joined_states, stack_trials, trial_contexts
+from ._trials import apply_to_trials, joined_states, stack_trials, trial_contexts
 
 __all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "ErrorDirections", "update_model", "robust_covariance", "joint_refit",
            "rig_alone_channels", "resume_update",
@@ -140,14 +140,15 @@ def _rig_job(coords, discretization=None, dt_factor=None, guess=None):
         physics.append(make_mechanism(name, **{main: value0 * math.exp(coords[-1])}))
         coords = coords[:-1]
     rig, maneuvers = apply_to_trials(ctx, ctx["parameters"], coords)
+    dt = None
+    if dt_factor is not None:
+        dt = ctx["nominal_dt"] * dt_factor
     sims, states = [], []
     for trial in trial_contexts(dict(ctx, maneuver=maneuvers), guess):
-        # Another discretization has its own stability limit: its step is its own (tracked).
-        step = fixed_step(trial, 1.0 if dt_factor is None else dt_factor) if discretization is None else {}
         try:
             res = simulate(rig, trial["maneuver"], discretization or ctx["discretization"],
                            physics, duration=trial["duration"], rate_hz=ctx["rate_hz"],
-                           statics_guess=trial["initial_state"] if discretization is None else None, **step)
+                           dt=dt, statics_guess=trial["initial_state"] if discretization is None else None)
         except (SimulationError, StaticsError, FloatingPointError):
             return None, None
         sims.append(channels_on(res, trial))
