@@ -720,7 +720,7 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
     best = {"objective": math.inf}
     jacobians = [0]
     # The stop decided at an accepted point (``by``: the gain rule or the cap), the step's predicted gain, trf's last J
-    stop = {"now": False, "by": None, "gain": None, "J": None}
+    stop = {"by": None, "gain": None, "J": None}
 
     def full(xa):
         coords = base.copy()
@@ -772,8 +772,7 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
         stop["gain"] = gain
         low = gain is not None and gain < enough()
         stop["by"] = "gain" if low else ("cap" if jacobians[0] >= max_jacobians - 1 else None)
-        stop["now"] = stop["by"] is not None
-        if stop["now"] and not final_jacobian and stop["J"] is not None:
+        if stop["by"] is not None and not final_jacobian and stop["J"] is not None:
             return stop["J"]  # never used: the callback ends the fit before another step
         if jacobians[0] > 0:
             known = ahead.pop(coords.tobytes(), {})
@@ -788,7 +787,7 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
 
     def callback(intermediate_result):  # noqa: ARG001 (scipy passes the iterate)
         note(f"evaluation {fit.n_sims}, chi2 {best['chi2']:.4g}")
-        if stop["now"]:
+        if stop["by"] is not None:
             raise StopIteration
 
     # Strictly inside the bounds, as trf starts (a start on a bound would cost one more simulation).
