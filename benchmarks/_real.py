@@ -140,7 +140,7 @@ def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="rop
     named one would refit the length with it and answer another question.
     What comes back: both estimates and uncertainties, the distance between
     them in the wrong fit's standard deviations, each parameter's
-    identifiability, and whether each fit converged (``converged`` false:
+    identifiability and the combinations seen only together, and whether each fit converged (``converged`` false:
     its cap of Jacobians or the trust region's own tolerances ended it with
     more to gain).
     """
@@ -164,15 +164,19 @@ def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="rop
         fits[label] = {"rope_length": float(rig_doc["ropes"]["rope"]["length"]),
                        "estimate": entries[parameter]["estimate"], "uncertainty": entries[parameter]["uncertainty"],
                        "identifiable": {k: e["identifiable"] for k, e in entries.items()},
+                       "unresolved_combinations": out["calibration"].get("unresolved_combinations", []),
                        "converged": out["calibration"]["converged"],
                        "seconds": time.perf_counter() - started}
         note(f"known answer, {label.replace('_', ' ')} ({fits[label]['rope_length']:.3f} m): "
              f"{parameter} {fits[label]['estimate']:.4f} +- {fits[label]['uncertainty']:.2g}")
     right, off = fits["right_file"], fits["wrong_file"]
     apart = abs(off["estimate"] - right["estimate"])
+    # Recovered: the wrong file's fit identified the parameter and its interval holds the right file's estimate.
+    # A parameter it held at the file's value (not identifiable) is within its tolerance of anything near: no claim.
+    identified = bool(off["identifiable"][parameter])
     return {"parameter": parameter, "factor": wrong, "flights": names, **fits,
             "difference": apart, "difference_in_sd": apart / off["uncertainty"] if off["uncertainty"] else None,
-            "recovered": bool(apart <= off["uncertainty"])}
+            "identified": identified, "recovered": identified and bool(apart <= off["uncertainty"])}
 
 
 def _draw(path, result):
@@ -206,10 +210,18 @@ def summary_lines(report):
         lines.append(f"known answer: {known['parameter']} {right['estimate']:.4f} +- {right['uncertainty']:.2g} from "
                      f"the file's {right['rope_length']:.3f} m, {wrong['estimate']:.4f} +- {wrong['uncertainty']:.2g} "
                      f"from {wrong['rope_length']:.3f} m: "
-                     + ("recovered" if known["recovered"] else "not recovered")
+                     + ("recovered" if known["recovered"] else "not recovered"
+                        + ("" if known.get("identified", True) else ": the fit from the wrong file calls it not "
+                           "identifiable"))
                      + f" ({known['difference_in_sd']:.1f} sd apart)"
                      + "".join(f"; the fit from {f['rope_length']:.3f} m stopped short of a minimum"
                                for f in (right, wrong) if f.get("converged") is False))
+        unseen = sorted({k for f in (right, wrong) for k, ok in f["identifiable"].items() if not ok})
+        lines.append("known answer: not identifiable in either fit: " + (", ".join(unseen) or "none"))
+        for f in (right, wrong):
+            for combo in f.get("unresolved_combinations", []):
+                lines.append(f"known answer, from {f['rope_length']:.3f} m: seen only together: "
+                             + ", ".join(combo["parameters"]))
     for key, what in (("updated_better_share", "the updated model predicts the held-out flight better than the "
                                                "nominal one"),
                       ("named_better_share", "the named model predicts it better than the updated one")):

@@ -18,8 +18,9 @@ A key names what it moves:
 - ``bodies.<body>.points.<point>.x`` (or ``y``, ``z``): where a rope is
   attached on a body (body frame), as a tape measures it
 - ``ropes.<group>.<property>`` with ``<property>`` one of
-  ``static_stiffness``, ``viscous_stiffness``, ``viscous_damping`` or
-  ``length`` (the unstretched length of a rope on no winch, m), and
+  ``static_stiffness``, ``viscous_stiffness``, ``viscous_damping``,
+  ``weight_per_length`` or ``length`` (the unstretched length of a rope on
+  no winch, m), and
   ``<group>`` a rope name or a group of ``[tolerance_groups]`` (one rope
   or chain type, every segment of it moved together)
 - ``fixed_points.<point>.x`` (or ``y``, ``z``)
@@ -47,8 +48,9 @@ from ..capture import key_text
 
 __all__ = ["RigParameter", "parse_tolerances", "apply_parameters", "draw_parameters"]
 
-_ROPE_PROPERTIES = ("static_stiffness", "viscous_stiffness", "viscous_damping", "length")
-_ROPE_UNITS = {"static_stiffness": "N", "viscous_stiffness": "N", "viscous_damping": "N s", "length": "m"}
+_ROPE_PROPERTIES = ("static_stiffness", "viscous_stiffness", "viscous_damping", "weight_per_length", "length")
+_ROPE_UNITS = {"static_stiffness": "N", "viscous_stiffness": "N", "viscous_damping": "N s", "weight_per_length": "N/m",
+               "length": "m"}
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import tomllib
 from importlib import resources
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -135,7 +136,6 @@ def test_a_release_moves_with_the_drawn_pivot_and_mass_centre():
 
 
 def _box_with(tolerances):
-    from pathlib import Path
 
     path = Path(__file__).resolve().parents[1] / "benchmarks" / "real" / "hmer101.toml"
     doc = tomllib.loads(path.read_text())
@@ -212,3 +212,32 @@ def test_a_tracks_offset_is_each_trials_own_and_moves_that_trials_point():
     # a point no maneuver moves: its place in the rig
     still, _ = apply_parameters(rig, maneuver.__class__([0.0]), [track], [0.02])
     assert still.fixed_points["drone1"][2] == pytest.approx(rig.fixed_points["drone1"][2] + 0.02)
+
+
+def test_with_the_anchors_track_prescribed_only_the_loads_mass_against_the_ropes_forces_moves_anything():
+    # Dimensional analysis: the load's mass, the rope's weight and every rope force constant times k give every
+    # particle the same acceleration (gravity's included) under a prescribed anchor, so a recording cannot see the
+    # mass once the rope's material is free (the Stormlord file's tolerances); holding one of them breaks it.
+    from dragline.simulate import Maneuver
+
+    rig = load_rig(Path(__file__).resolve().parents[1] / "benchmarks" / "real" / "stormlord.toml")
+    t = np.linspace(0.0, 4.0, 401)
+    ramp = np.clip(t - 0.5, 0.0, 2.0) / 2.0
+    move = 0.5 * (ramp - np.sin(2.0 * np.pi * ramp) / (2.0 * np.pi))  # 0.5 m over 2 s, no jump in acceleration
+    drone = rig.fixed_points["drone"] + np.column_stack([move, 0.4 * move, -0.2 * move])
+    maneuver = Maneuver(t, {}, {"drone": drone})
+    forces = {"bodies.load.mass", "ropes.rope.static_stiffness", "ropes.rope.viscous_stiffness",
+              "ropes.rope.viscous_damping", "ropes.rope.weight_per_length"}
+    assert forces <= {p.name for p in rig.tolerances}
+
+    def load_track(scaled):
+        coords = [math.log(1.5) if p.name in scaled else 0.0 for p in rig.tolerances]
+        moved, moved_maneuver = apply_parameters(rig, maneuver, rig.tolerances, coords)
+        table = simulate(moved, moved_maneuver, duration=4.0, rate_hz=100.0, dt=1e-4).table
+        return np.column_stack([table[f"load.{a}"] for a in "xyz"])
+
+    nominal = load_track(set())
+    assert np.ptp(nominal[:, 0]) > 0.3  # the load follows the drone: a motion, not a rest
+    np.testing.assert_allclose(load_track(forces), nominal, rtol=0, atol=1e-9)
+    held_weight = load_track(forces - {"ropes.rope.weight_per_length"})
+    assert np.abs(held_weight - nominal).max() > 1e-4

@@ -219,10 +219,17 @@ def _calibration_lines(doc):
     for e in cal.get("parameters", []):
         lines.append(f"  {e['parameter']:<36} nominal {_f(e['nominal'], '.4g'):>9} -> {_f(e['estimate'], '.4g'):>9} "
                      f"+- {_f(e['uncertainty'], '.2g'):>7} {e['unit']:<4} ({e['shift_in_tolerances']:+.2f} tol) "
-                     f"{'identifiable' if e['identifiable'] else 'not identifiable'}")
+                     f"{'identifiable' if e['identifiable'] else 'not identifiable'}"
+                     + (" (its response is not smooth: differences either way disagree by "
+                        f"{_f(e['one_sided_disagreement'], '.2g')})" if e.get("smooth") is False else ""))
     for pair in cal.get("degenerate_pairs", []):
         lines.append(f"  moved only together: {pair['parameters'][0]} and {pair['parameters'][1]} "
                      f"(correlation {pair['correlation']:+.2f})")
+    for combo in cal.get("unresolved_combinations", []):
+        seen = ", ".join(f"{name} ({w:+.2f})" for name, w in combo["parameters"].items())
+        lines.append(f"  seen only in a combination: {seen} - the recording does not fix them along it "
+                     f"(its information there {combo['information']:.2g} in tolerance units); measuring one decides "
+                     "the others")
     if cal.get("unexplained_offsets"):
         lines.append("  offsets no parameter explains: " + ", ".join(cal["unexplained_offsets"]))
     if cal.get("converged") is False:

@@ -106,6 +106,9 @@ SYSTEMATIC_FLOOR = 0.02
 ERROR_ALONG_SIGNATURE = 0.18
 
 
+# ln of the largest float, less a margin: an interval wider than this is no interval.
+_WIDEST = 700.0
+
 def stated_uncertainty(scored, main, kappa, marginal=None, own_error=None):
     """The stated uncertainty of a fitted main parameter (see ``_hypotheses``).
 
@@ -136,7 +139,10 @@ def stated_uncertainty(scored, main, kappa, marginal=None, own_error=None):
         stated = None if along is None else math.hypot(stated, along)
 
     def interval(width):
-        return [value * math.exp(-width), value * math.exp(width)] if width is not None and value > 0 else None
+        # A width past a float's range (a tiny improvement against the model's own error) bounds nothing.
+        if width is None or value <= 0 or width > _WIDEST:
+            return None
+        return [value * math.exp(-width), value * math.exp(width)]
 
     return {
         "parameter": main,
