@@ -140,9 +140,11 @@ def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="rop
     named one would refit the length with it and answer another question.
     What comes back: both estimates and uncertainties, the distance between
     them in the wrong fit's standard deviations, each parameter's
-    identifiability and the combinations seen only together, and whether each fit converged (``converged`` false:
-    its cap of Jacobians or the trust region's own tolerances ended it with
-    more to gain).
+    identifiability and the combinations seen only together, and whether
+    each fit converged (``converged`` false: its cap of Jacobians or the
+    trust region's own tolerances ended it with more to gain). Recovered:
+    the wrong file's fit identified the parameter and its interval holds
+    the right file's estimate.
     """
     import copy
     import tomllib

@@ -109,6 +109,7 @@ ERROR_ALONG_SIGNATURE = 0.18
 # ln of the largest float, less a margin: an interval wider than this is no interval.
 _WIDEST = 700.0
 
+
 def stated_uncertainty(scored, main, kappa, marginal=None, own_error=None):
     """The stated uncertainty of a fitted main parameter (see ``_hypotheses``).
 

@@ -1298,7 +1298,9 @@ def _calibration_block(params, coords, cov, information, strength, offsets, ctx,
         "converged": history[-1].get("stopped_by") in ("gain", "nothing to fit") if history else None,
         "failed_sensitivities": failed,
         "method": ("bounded trust-region least squares (scipy trf) over the rig file's tolerances, with them as "
-                   f"priors: sensitivities by finite differences over {FD_FRACTION:g} tolerance; per-channel offsets (prior "
+                   f"priors: sensitivities by finite differences over {FD_FRACTION:g} tolerance ({WIDE_STEP:g} times "
+                   "that where the differences either way disagree, the parameter held where they disagree at both); "
+                   "per-channel offsets (prior "
                    f"{scale.floor(OFFSET_PRIOR, 'position') * 1000:.3g} mm, "
                    f"{math.degrees(OFFSET_PRIOR['angle']):g} deg) and the "
                    "clock shift fitted jointly; identifiable when the data at least halve the prior spread"),
