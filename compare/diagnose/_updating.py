@@ -418,7 +418,7 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
             rough, fd_scale, more = _smooth_differences(problem, pool, coords, moving, tol, sim, state, sens)
             n_sims += more
             strength = _strength(problem, sens, tol)  # a widened difference's column is its own
-            active = np.array([i for i in moving if not rough.get(int(i), 0.0) > ROUGH], int)
+            active = np.array([i for i in moving if _smooth(rough, int(i))], int)
             note(f"sensitivities of {k} rig parameters done; {len(moving)} move the recording, "
                  f"{len(moving) - len(active)} of them not smoothly")
         else:
@@ -959,6 +959,11 @@ def one_sided_disagreement(forward, backward):
     return float(2.0 * apart / together) if together > 0.0 else math.inf
 
 
+def _smooth(rough, i):
+    """Whether parameter ``i``'s differences agree (unchecked counts as smooth: ``_smooth_differences``)."""
+    return not rough.get(i, 0.0) > ROUGH
+
+
 def _strength(problem, sens, tol):
     """sqrt chi2 of each parameter's one-tolerance change, by its sensitivity."""
     return np.array([math.sqrt(float((problem.W * np.where(problem.valid, s_ * t, 0.0) ** 2).sum()))
@@ -1264,12 +1269,12 @@ def _calibration_block(params, coords, cov, information, strength, offsets, ctx,
             "shift_in_tolerances": x / p.tolerance,
             "posterior_over_prior": float(information[i]),
             "sensitivity": float(strength[i]),
-            "identifiable": bool(information[i] < IDENTIFIABLE_RATIO and p.name not in failed
-                                 and not rough.get(i, 0.0) > ROUGH),
+            # a rough parameter is never active: its posterior is its prior
+            "identifiable": bool(information[i] < IDENTIFIABLE_RATIO and p.name not in failed),
             # null where unchecked, or where the two ways cancel exactly (inf: not smooth)
             "one_sided_disagreement": rough[i] if math.isfinite(rough.get(i, math.inf)) else None,
             "difference_step": FD_FRACTION * (1.0 if fd_widening is None else float(fd_widening[i])),
-            "smooth": not rough.get(i, 0.0) > ROUGH,
+            "smooth": _smooth(rough, i),
             "at_bound": bool(abs(x) >= BOUND_TOLERANCES * p.tolerance * (1 - 1e-6)),
             "description": p.describe(x),
         })
