@@ -16,7 +16,7 @@ from ._release import POSE_COORDINATES, let_go
 from ._rig import load_rig
 from ._statics import solve_statics
 from ._time_step import start_time_step
-from ._tracked import MAX_STEPS, RK4, VERLET, integrate_tracked
+from ._tracked import MAX_STEPS, NO_REFINEMENT, NO_SCHEDULE, RK4, VERLET, integrate_tracked
 from ._table import trajectory_columns
 
 # The integrators ``simulate`` offers, by name.
@@ -42,6 +42,17 @@ MAX_STRAIN = 0.25
 # rope faster than this speed (a table that jumps 1 m in 1e-12 s).
 MIN_ELEMENT_LENGTH = 1e-3  # m
 MAX_REEL_SPEED = 20.0  # m/s, fifteen times the paper's rope speed limit
+
+
+def _frozen_schedule(schedule, n_records, method):
+    """``simulate``'s ``schedule`` as ``integrate_tracked`` takes it (empty arrays: none)."""
+    if schedule is None or method != VERLET:
+        return NO_SCHEDULE, NO_REFINEMENT
+    substeps, refined = (np.asarray(a) for a in schedule)
+    if substeps.ndim != 1 or refined.shape != substeps.shape or substeps.shape[0] < n_records:
+        raise ValueError(f"a step schedule of {substeps.shape[0]} record intervals for a run of {n_records}")
+    return (np.ascontiguousarray(substeps[:n_records], np.int64),
+            np.ascontiguousarray(refined[:n_records], np.bool_))
 
 
 @dataclass
@@ -70,6 +81,12 @@ class SimulationResult:
     substeps : ndarray (N - 1,) of int, optional
         Verlet steps taken in each record interval (the schedule
         ``sensitivities`` differentiates on); None for RK4.
+    refined : ndarray (N - 1,) of bool, optional
+        Where that count is a slack refinement (``_tracked``).
+    unrefined_slack : int
+        On a given ``schedule``: record intervals where an element turned
+        slack or taut at a step the schedule had not refined (the run is
+        then less accurate there than its own schedule would make it).
     """
 
     time: np.ndarray
@@ -81,6 +98,13 @@ class SimulationResult:
     dt_start: float = float("nan")
     timings: dict = field(default_factory=dict)
     substeps: np.ndarray | None = None
+    refined: np.ndarray | None = None
+    unrefined_slack: int = 0
+
+    @property
+    def schedule(self):
+        """``(substeps, refined)``: what ``simulate(..., schedule=)`` takes to step as this run did; None for RK4."""
+        return None if self.substeps is None else (self.substeps, self.refined)
 
     @property
     def table(self):
@@ -340,6 +364,7 @@ def simulate(
     statics_guess=None,
     integrator="verlet",
     release=None,
+    schedule=None,
 ):
     """Simulate a maneuver from static equilibrium, or from a release.
 
@@ -387,6 +412,15 @@ def simulate(
         Kick-drift-kick velocity Verlet (``_verlet``: one right-hand side a
         step, about twice as fast at the baseline) or classical RK4, the
         reference.
+    schedule : tuple, optional
+        An earlier run's ``SimulationResult.schedule`` (Verlet, no ``dt``;
+        the same rate and start, as long or longer): step as it did, record by record (``_tracked.integrate_tracked``'s
+        ``frozen``), so that the difference of two runs a small parameter
+        change apart is the change, not two step sequences' scatter (the
+        diagnosis's finite differences). Where the rig stiffens beyond the
+        schedule's margin the run steps on its own; elsewhere it refines no
+        interval the schedule did not, wherever an element turns slack or
+        taut (``_tracked.integrate_tracked``).
 
     Returns
     -------
@@ -449,26 +483,32 @@ def simulate(
     clock = _clock.perf_counter()
     if dt is None:
         dt0, lam0 = start_time_step(model, y0, t0, integrator=integrator)
-        records, substeps, status, bad_time, bad_index = integrate_tracked(
-            y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, MAX_STEPS, method
+        frozen, frozen_refined = _frozen_schedule(schedule, n_records, method)
+        records, substeps, refined, unrefined, status, bad_time, bad_index = integrate_tracked(
+            y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, MAX_STEPS, method, frozen, frozen_refined
         )
         if status == _kernel.STATUS_TOO_STIFF:
             raise ValueError(
                 f"the rig stiffens beyond what can be integrated: at t = {bad_time:.3f} s a step of "
                 f"{out_dt / max(bad_index, 1):.2g} s would be needed (a rope or chain element near zero length? "
                 f"check the maneuver's reel lengths), more than the {MAX_STEPS:.0e} steps allowed")
-        schedule = substeps if method == VERLET else None
+        taken = substeps if method == VERLET else None
+        refined = refined if method == VERLET else None
+        unrefined = int(unrefined)
         step = out_dt / max(int(substeps.max(initial=1)), 1)  # the smallest step taken
         steps, dt_start = int(substeps.sum()), out_dt / max(int(substeps[0]), 1) if len(substeps) else dt0
     else:
         per_record = max(1, int(np.ceil(out_dt / float(dt) - 1e-9)))
         step = dt_start = out_dt / per_record
         steps = n_records * per_record
-        schedule = np.full(n_records, per_record, np.int64) if method == VERLET else None
+        taken = np.full(n_records, per_record, np.int64) if method == VERLET else None
+        refined = np.zeros(n_records, bool) if method == VERLET else None
+        unrefined = 0
         if method == VERLET:
             # lam0 = inf: the step is never cut, nor refined at a slack change (a fixed step was asked)
-            records, _, status, bad_time, bad_index = integrate_tracked(
-                y0, t0, out_dt, n_records, step, np.inf, m, work, max_speed, MAX_STEPS, method)
+            records, _, _, _, status, bad_time, bad_index = integrate_tracked(
+                y0, t0, out_dt, n_records, step, np.inf, m, work, max_speed, MAX_STEPS, method, NO_SCHEDULE,
+                NO_REFINEMENT)
         else:
             records, status, bad_step, bad_index = _kernel.integrate(
                 y0, t0, step, n_records * per_record, per_record, m, work, max_speed
@@ -484,4 +524,6 @@ def simulate(
     return SimulationResult(time=time, states=records, model=model, dt=step, equilibrium_residual=residual,
                             steps=steps, dt_start=dt_start,
                             timings={"statics_s": statics_s, "integrate_s": integrate_s},
-                            substeps=None if schedule is None else schedule[: records.shape[0] - 1])
+                            substeps=None if taken is None else taken[: records.shape[0] - 1],
+                            refined=None if refined is None else refined[: records.shape[0] - 1],
+                            unrefined_slack=unrefined)

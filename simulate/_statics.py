@@ -26,7 +26,7 @@ from ._blas import one_blas_thread
 from ._kernel import KIND_PARTICLE
 from ._model import kernel_model, rough_body_positions
 from ._time_step import _shortest_rest_lengths
-from ._tracked import MAX_STEPS, VERLET, gershgorin_rows, integrate_tracked
+from ._tracked import MAX_STEPS, NO_REFINEMENT, NO_SCHEDULE, VERLET, gershgorin_rows, integrate_tracked
 from ._verlet import VERLET_IMAGINARY_LIMIT
 
 __all__ = ["Equilibrium", "StaticsError", "solve_statics"]
@@ -224,8 +224,8 @@ def solve_statics(model, t=0.0, y0=None, damping=4.0, max_relax_time=60.0, tol=1
                                    or relaxed * RELAX_CHECK_S < at_least - 1e-9):
             # Every argument given: an omitted one is a type of its own, and numba would compile the
             # whole integrator a second time for the statics.
-            rec, _, status, _, _ = integrate_tracked(y, 0.0, per * dt, RELAX_SLICES, dt, lam0, m, work, 1e3,
-                                                     MAX_STEPS, VERLET)
+            rec, _, _, _, status, _, _ = integrate_tracked(y, 0.0, per * dt, RELAX_SLICES, dt, lam0, m, work, 1e3,
+                                                        MAX_STEPS, VERLET, NO_SCHEDULE, NO_REFINEMENT)
             if status != _kernel.STATUS_OK:
                 raise StaticsError(f"no static equilibrium at the rope lengths of t = {t:g} s (relaxation diverged)")
             y = rec[-1].copy()

@@ -47,6 +47,14 @@ VERLET = 1
 # as a share of its step elsewhere (``_verlet``: the kink's energy error).
 SLACK_STEP_FACTOR = 0.35
 
+# A frozen schedule (``integrate_tracked``'s ``frozen``) is kept where its step is at most this much longer
+# than the run's own tracked step: within the stability limit's margin (``_time_step.VERLET_SAFETY`` 0.85 of
+# h |lambda| = 2), and wider than a finite difference's change of the stiffness (a tenth of a tolerance of the
+# rope's stiffness, ln 3: 11 %, the step 5 %). Beyond it the run steps on its own.
+FROZEN_MARGIN = 1.1
+NO_SCHEDULE = np.zeros(0, dtype=np.int64)
+NO_REFINEMENT = np.zeros(0, dtype=np.bool_)
+
 # The dig's shortest ring side cuts the step about fivefold; a step a
 # thousand times below the start's means an element near zero length (a
 # reel table run to nothing), where the step would fall without end.
@@ -169,7 +177,8 @@ def state_gershgorin_lambda(t, y, m, work):
 
 
 @njit(cache=True)
-def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, max_steps=MAX_STEPS, method=RK4):
+def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, max_steps=MAX_STEPS, method=RK4,
+                      frozen=NO_SCHEDULE, frozen_refined=NO_REFINEMENT):
     """RK4 or Verlet from ``t0``, one record every ``out_dt``, the step cut as the rig stiffens.
 
     In each record interval the step is ``dt0 * sqrt(lam0 / lam)`` when the
@@ -180,6 +189,18 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
     bound (a rope reeled in to nothing) would otherwise cut the step
     towards zero and never finish. With ``lam0`` infinite the step is
     ``dt0`` throughout (a fixed step).
+
+    ``frozen`` (Verlet; steps per record interval) and ``frozen_refined``
+    (which of those counts were a slack refinement), an earlier run's
+    ``substeps`` and ``refined``: the run takes that schedule instead of its
+    own, so that runs a small parameter change apart step alike and their
+    difference is a derivative, not the jumps of two schedules
+    (``FROZEN_MARGIN``). Such a run refines no interval where an element
+    turns slack or taut: the schedule says where it steps finer. An element
+    that hangs at the slack point (a sling at rest) turns slack and taut at
+    the least change, and a refinement there moved the hook-block crane's
+    motion by as much as the hoist rope's stiffness did (its difference
+    forward and backward 0.9 apart, ``_updating.one_sided_disagreement``).
 
     ``method``: ``RK4`` (classical, four right-hand sides a step) or
     ``VERLET`` (``_verlet``, one). A tracked Verlet run does a record
@@ -194,6 +215,11 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
     records : ndarray (n_records + 1, n_state)
     substeps : ndarray (n_records,) of int
         Steps taken in each record interval.
+    refined : ndarray (n_records,) of bool
+        Where that count is a slack refinement.
+    unrefined : int
+        Record intervals of a ``frozen`` schedule where an element turned
+        slack or taut at a step the schedule had not refined.
     status : int
         STATUS_OK, STATUS_NONFINITE, STATUS_RUNAWAY or STATUS_TOO_STIFF.
     bad_time : float
@@ -205,6 +231,7 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
     n = y0.shape[0]
     records = np.empty((n_records + 1, n))
     substeps = np.zeros(n_records, dtype=np.int64)
+    refined = np.zeros(n_records, dtype=np.bool_)
     y = y0.copy()
     k1, k2, k3, k4, tmp = rk4_scratch(n)
     nb = m.nb
@@ -221,14 +248,21 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
     P = m.part_seg.shape[0]
     total = 0
     tracked = lam0 < np.inf
+    frozen_run = method == VERLET and frozen.shape[0] >= n_records > 0
+    unrefined = 0
     for rec in range(n_records):
         t_rec = t0 + rec * out_dt
         lam = state_gershgorin_lambda(t_rec, y, m, work)
         dt = dt0 * math.sqrt(lam0 / lam) if lam > lam0 > 0.0 else dt0
         need = math.ceil(out_dt / dt - 1e-9) * 1.0 if dt > 0.0 else math.inf
         if total + need > max_steps or dt < MIN_STEP_RATIO * dt0:
-            return records[: rec + 1], substeps[: rec + 1], STATUS_TOO_STIFF, t_rec, int(min(need, 2**62))
+            return records[: rec + 1], substeps[: rec + 1], refined[: rec + 1], unrefined, STATUS_TOO_STIFF, \
+                t_rec, int(min(need, 2**62))
         sub = max(1, int(need))
+        kept = frozen_run and frozen[rec] * FROZEN_MARGIN >= sub
+        if kept:
+            sub = frozen[rec]
+            refined[rec] = frozen_refined[rec]
         total += sub
         substeps[rec] = sub
         h = out_dt / sub
@@ -241,7 +275,9 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
             rebased_start[:] = work.rebased
             work.slack_changes[0] = 0.0
             verlet_steps(t_rec, h, sub, y, acc, y_eval, m, work)
-            if work.slack_changes[0] > 0.0 and tracked:
+            if work.slack_changes[0] > 0.0 and kept and not refined[rec]:
+                unrefined += 1
+            if work.slack_changes[0] > 0.0 and tracked and not kept:
                 # An element turned slack or taut: Verlet, which damps nothing, would
                 # take energy from that kink at its full step; the interval again, finer.
                 y[:] = y_start
@@ -252,9 +288,11 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
                 work.rebased[:] = rebased_start
                 fine = int(math.ceil(sub / SLACK_STEP_FACTOR - 1e-9))
                 if total + fine > max_steps:
-                    return records[: rec + 1], substeps[: rec + 1], STATUS_TOO_STIFF, t_rec, fine
+                    return (records[: rec + 1], substeps[: rec + 1], refined[: rec + 1], unrefined, STATUS_TOO_STIFF,
+                            t_rec, fine)
                 total += fine
                 substeps[rec] = fine
+                refined[rec] = True
                 h = out_dt / fine
                 verlet_steps(t_rec, h, fine, y, acc, y_eval, m, work)
         else:
@@ -263,6 +301,7 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
                 rebase(y, work, nb)
         status, index = first_bad(y, nb, P, max_speed)
         if status != STATUS_OK:
-            return records[: rec + 1], substeps[: rec + 1], status, t_rec + out_dt, index
+            return records[: rec + 1], substeps[: rec + 1], refined[: rec + 1], unrefined, status, t_rec + out_dt, \
+                index
         record_state(records[rec + 1], y, work, nb)
-    return records, substeps, STATUS_OK, np.nan, -1
+    return records, substeps, refined, unrefined, STATUS_OK, np.nan, -1

@@ -18,7 +18,7 @@ from dragline.simulate._time_step import (
     stable_time_step,
     start_time_step,
 )
-from dragline.simulate._tracked import integrate_tracked
+from dragline.simulate._tracked import MAX_STEPS, NO_REFINEMENT, NO_SCHEDULE, RK4, integrate_tracked
 
 RK4_REAL_LIMIT = 2.785293563  # |R(z)| = 1 on the negative real axis (z = -2.7853)
 
@@ -68,22 +68,23 @@ def _tracked(model, state, safety, track=True):
     dt0, lam0 = start_time_step(model, state, safety=safety)
     m = model.kernel_tuple()
     # lam0 = inf never cuts the step: a fixed step at the start's limit
-    return integrate_tracked(state, 0.0, 5e-3, 2000, dt0, lam0 if track else np.inf, m, _kernel.make_work(m), 100.0)
+    return integrate_tracked(state, 0.0, 5e-3, 2000, dt0, lam0 if track else np.inf, m, _kernel.make_work(m), 100.0,
+                             MAX_STEPS, RK4, NO_SCHEDULE, NO_REFINEMENT)
 
 
 def test_the_tracked_step_is_accurate_and_its_limit_is_real(low_dig):
     model, state, ref = low_dig
-    rec, substeps, status, _, _ = _tracked(model, state, safety=None)
+    rec, substeps, _, _, status, _, _ = _tracked(model, state, safety=None)
     assert status == _kernel.STATUS_OK
     assert 1e3 * np.max(np.linalg.norm(rec[:, :3] - ref[:, :3], axis=1)) < 0.05  # mm, bucket
     assert substeps.max() > substeps[0]  # the ring sides shorten during the dig: the step was cut
     # a quarter past the limit, the fastest mode grows and the run blows up
-    assert _tracked(model, state, safety=1.25)[2] != _kernel.STATUS_OK
+    assert _tracked(model, state, safety=1.25)[4] != _kernel.STATUS_OK
 
 
 def test_without_tracking_the_start_step_blows_up_as_a_ring_side_shortens(low_dig):
     model, state, _ = low_dig
-    _, _, status, bad_time, bad_index = _tracked(model, state, safety=None, track=False)
+    _, _, _, _, status, bad_time, bad_index = _tracked(model, state, safety=None, track=False)
     assert status != _kernel.STATUS_OK and bad_time > 1.0
     assert "dump_rope" in model.describe_state_index(bad_index)
 
@@ -95,13 +96,14 @@ def test_a_rig_stiffening_without_bound_stops_instead_of_stepping_towards_zero(l
     work = _kernel.make_work(m)
     # As if the stiffness had grown ten-million-fold since dt0 was found: the step would fall below
     # MIN_STEP_RATIO of it.
-    _, _, status, bad_time, need = integrate_tracked(state, 0.0, 5e-3, 10, dt0, lam0 * 1e-7, m, work, 100.0)
+    _, _, _, _, status, bad_time, need = integrate_tracked(state, 0.0, 5e-3, 10, dt0, lam0 * 1e-7, m, work, 100.0,
+                                                        MAX_STEPS, RK4, NO_SCHEDULE, NO_REFINEMENT)
     assert status == _kernel.STATUS_TOO_STIFF and bad_time == 0.0
     assert need >= 5e-3 / (dt0 * 1e-3)
     # A run whose steps would exceed the budget stops at the record that would pass it.
     per_record = int(np.ceil(5e-3 / dt0 - 1e-9))
-    rec, substeps, status, bad_time, _ = integrate_tracked(state, 0.0, 5e-3, 10, dt0, np.inf, m, work, 100.0,
-                                                           max_steps=3 * per_record)
+    rec, substeps, _, _, status, bad_time, _ = integrate_tracked(state, 0.0, 5e-3, 10, dt0, np.inf, m, work, 100.0,
+                                                              3 * per_record, RK4, NO_SCHEDULE, NO_REFINEMENT)
     assert status == _kernel.STATUS_TOO_STIFF and len(rec) == 4 and bad_time == pytest.approx(3 * 5e-3)
     assert substeps.sum() == 3 * per_record
 
@@ -132,3 +134,32 @@ def test_the_largest_of_many_oscillators_and_a_fast_decay():
         i += len(b)
     q, _ = np.linalg.qr(np.random.default_rng(0).normal(size=(120, 120)))
     assert np.abs(largest_eigenvalues(q @ d @ q.T)).max() == pytest.approx(59000.0, rel=1e-10)
+
+
+def test_a_run_on_a_frozen_schedule_steps_as_the_schedule_says_and_a_run_on_its_own_repeats_itself():
+    """The hook-block crane's slings hang at the slack point: its run refines a record interval where an element
+    turned slack or taut. On its own schedule the run repeats itself bit for bit; a rig a small change of the
+    hoist rope's stiffness away takes the same steps on it (and refines nothing of its own), so the two runs'
+    difference is the parameter's, not two step sequences'."""
+    from dragline.simulate import apply_parameters, default_maneuver, load_rig, simulate
+
+    rig = load_rig("hook_block_crane")
+    maneuver = default_maneuver(rig)
+    base = simulate(rig, maneuver, duration=3.0, rate_hz=100.0)
+    assert base.refined.any()  # the case the schedule is for
+    again = simulate(rig, maneuver, duration=3.0, rate_hz=100.0, schedule=base.schedule)
+    np.testing.assert_array_equal(again.states, base.states)
+    assert again.steps == base.steps
+    params = rig.tolerances
+    stiffness = [p.name for p in params].index("ropes.hoist_rope.static_stiffness")
+    for sign in (1.0, -1.0):
+        x = np.zeros(len(params))
+        x[stiffness] = sign * 0.01 * params[stiffness].tolerance
+        moved_rig, moved = apply_parameters(rig, maneuver, params, x)
+        run = simulate(moved_rig, moved, duration=3.0, rate_hz=100.0, schedule=base.schedule)
+        np.testing.assert_array_equal(run.substeps, base.substeps)
+        np.testing.assert_array_equal(run.refined, base.refined)
+        moved_by = np.abs(run.states[:, :3] - base.states[:, :3]).max()  # the hook block's position (m)
+        assert 0.0 < moved_by < 1e-5
+    with pytest.raises(ValueError, match="step schedule"):
+        simulate(rig, maneuver, duration=4.0, rate_hz=100.0, schedule=base.schedule)

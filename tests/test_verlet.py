@@ -6,7 +6,7 @@ import pytest
 from dragline.simulate import Maneuver, assemble, dig_maneuver, load_rig, parse_physics, simulate, solve_statics
 from dragline.simulate import _kernel
 from dragline.simulate._time_step import VERLET_SAFETY, start_time_step
-from dragline.simulate._tracked import VERLET, integrate_tracked
+from dragline.simulate._tracked import NO_REFINEMENT, NO_SCHEDULE, VERLET, integrate_tracked
 
 
 def _bucket_error_um(a, b):
@@ -67,10 +67,10 @@ def test_the_tracked_verlet_step_holds_the_dig_and_a_fixed_step_past_its_limit_b
 
     def run(step, lam):
         return integrate_tracked(state, 0.0, 5e-3, 400, step, lam, m, _kernel.make_work(m), 100.0,
-                                 50_000_000, VERLET)
+                                 50_000_000, VERLET, NO_SCHEDULE, NO_REFINEMENT)
 
-    assert run(dt0, lam0)[2] == _kernel.STATUS_OK  # the dig's first 2 s at the default safety
-    assert run(dt0 / VERLET_SAFETY * 1.25, np.inf)[2] != _kernel.STATUS_OK
+    assert run(dt0, lam0)[4] == _kernel.STATUS_OK  # the dig's first 2 s at the default safety
+    assert run(dt0 / VERLET_SAFETY * 1.25, np.inf)[4] != _kernel.STATUS_OK
 
 
 def test_an_element_turning_slack_makes_the_tracked_verlet_step_finer():

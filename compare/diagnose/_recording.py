@@ -196,12 +196,27 @@ def _load_tracked(path, mapping, rig, maneuver, note):
     if report["rows_dropped"] or report["gaps"] or report["off_step"]:
         note(f"{path}: {report['rows_dropped']} rows without a usable time dropped, {report['off_step']} intervals "
              f"off the median step, {report['gaps']} gaps left missing")
+    if tracked is not None:
+        source["point_smoothing"] = _smoothing_report(poses, tracked)
     if maneuver is None:
         maneuver, source["maneuver"] = (tracked, "the tracked points' track") if tracked is not None else (
             default_maneuver(rig), "the rig's own")
     else:
         source["maneuver"] = "given"
     return table, maneuver, source
+
+
+def _smoothing_report(poses, tracked):
+    """Each tracked point's smoothed track (``reconstruct.smoothed_track``) against its samples: the RMS (m)."""
+    t = np.asarray(poses.time, float)
+    out = {}
+    for name, samples in poses.points.items():
+        fine = tracked.points[name]
+        at = np.column_stack([np.interp(t, tracked.time, fine[:, j]) for j in range(3)])
+        out[name] = {"method": "cubic smoothing spline, smoothing by generalized cross-validation",
+                     "rate_hz": float(1.0 / (tracked.time[1] - tracked.time[0])) if tracked.time.size > 1 else None,
+                     "rms_from_samples_m": float(np.sqrt(np.mean(np.sum((at - samples) ** 2, axis=1))))}
+    return out
 
 
 def _session_cameras(session, file, folder, calibration, note):

@@ -177,12 +177,21 @@ def _stacked(state, trials):
     ctx = dict(first["ctx"], maneuver=tuple(t["ctx"]["maneuver"] for t in trials), channels=channels, time=time,
                parameters=each_trials_own(state.rig.tolerances, names) + starts,
                initial_state=tuple(t["nominal_run"].states[0] for t in trials),
+               schedules=tuple(t["ctx"]["schedules"][0] for t in trials),
                trials=tuple({"name": name, "time": t["time"], "channels": t["channels"], "rows": t["time"].size,
                              "duration": t["ctx"]["duration"], "columns": cols}
                             for name, t, cols in zip(names, trials, columns)))
     problem = Problem(time, values, noise, t_stops, offset_free=free_offsets(channels, state.shared_frame))
     return replace(state, recording=recording, nominal_run=first["nominal_run"], nominal_sim=nominal_sim,
                    plain_problem=problem, nominal_ctx=ctx, problem=problem, ctx=ctx)
+
+
+def _cut(schedule, records):
+    """A run's step schedule (``SimulationResult.schedule``) for its first ``records`` record intervals (rounded)."""
+    if schedule is None:
+        return None
+    n = int(round(records))
+    return schedule[0][:n], schedule[1][:n]
 
 
 def _aligned_trial(state, measured, maneuver, rate=None):
@@ -249,7 +258,7 @@ def _aligned_trial(state, measured, maneuver, rate=None):
     dt = float(time[1] - time[0])
     ctx = {"rig": rig, "maneuver": maneuver, "discretization": state.discretization, "duration": duration,
            "rate_hz": rate, "initial_state": nominal_run.states[0], "time": time, "channels": channels,
-           "nominal_dt": float(nominal_run.dt),
+           "nominal_dt": float(nominal_run.dt), "schedules": (_cut(nominal_run.schedule, duration * rate),),
            "parameters": tuple(rig.tolerances) + (start_parameters(maneuver.start, estimate["start"])
                                                   if "start" in estimate else ()),
            # The recording was reconstructed with this rig's geometry (``channels_on``).

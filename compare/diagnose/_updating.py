@@ -35,6 +35,21 @@ its autocorrelation time), so that a residual the model leaves structured
 the noise level leaves the plain posterior; a parameter is *identifiable*
 when the recording at least halves its prior standard deviation.
 
+Step schedule
+-------------
+The integration's step follows the rig (``simulate._tracked``): it is cut
+as ropes shorten, and a record interval where a rope element turns slack
+or taut is done again at a third of the step. Two runs a small parameter
+change apart then step differently wherever an element hangs at the slack
+point, and their difference is those two step sequences' scatter, not the
+parameter's effect: on the slung-load flights the load's mass and the
+rope's material differenced forward and backward read 2-4 apart
+(``one_sided_disagreement``), the step counts 3 % apart. So every run of
+a fit steps on one schedule, its start's (the nominal run's, the updated
+rig's for a fit from there; ``simulate``'s ``schedule``), except where the
+rig stiffens beyond the schedule's margin; the fit's objective and its
+finite differences are then one smooth function of the parameters.
+
 Model error
 -----------
 The nominal model is simulated once more at the next finer discretization
@@ -53,6 +68,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -65,6 +81,7 @@ from ...simulate import (
 )
 from .._compare import channel_kind
 from ._heterogeneity import between_trials, widened
+from ._mass_scale import PROBE, gauge_covariance, is_pure_rescaling, scale_block, scale_direction
 from ._hypotheses import _init, _pool, bounded_solve, channels_on
 from ._scale import REFERENCE
 from ._trials import apply_to_trials, joined_states, stack_trials, trial_contexts
@@ -148,8 +165,24 @@ IDENTIFIABLE_RATIO = 0.5
 BATCH_TIMES = 4.0
 
 
-def _rig_job(coords, discretization=None, dt_factor=None, guess=None):
-    """Channels of the rig with its parameters at ``coords`` (None when the simulation fails)."""
+class _Run(NamedTuple):
+    """What ``_rig_job`` returns: the channels (n, c), the trials' equilibria and step schedules (None: failed)."""
+
+    sim: np.ndarray | None
+    state: object
+    schedules: tuple | None
+
+
+def _rig_job(coords, discretization=None, dt_factor=None, guess=None, schedules=None, accurate=False):
+    """The rig with its parameters at ``coords``: a ``_Run``, its channels None when the simulation fails.
+
+    ``schedules``: each trial's step schedule (``SimulationResult.schedule``)
+    to step on, at the model's own discretization and step (the module's
+    *Step schedule*). ``accurate``: a trial whose rope turned slack where
+    the schedule had not refined is run again on its own schedule (a point
+    a fit may move to, not a finite difference). The ``_Run``'s schedules
+    are those its runs took: what a finite difference at it steps on.
+    """
     from ._hypotheses import _CTX as ctx
 
     physics = list(ctx.get("base_physics", ()))
@@ -163,17 +196,25 @@ def _rig_job(coords, discretization=None, dt_factor=None, guess=None):
     dt = None
     if dt_factor is not None:
         dt = ctx["nominal_dt"] * dt_factor
-    sims, states = [], []
-    for trial in trial_contexts(dict(ctx, maneuver=maneuvers), guess):
+    trials = trial_contexts(dict(ctx, maneuver=maneuvers), guess)
+    if schedules is None or discretization is not None or dt is not None:
+        schedules = [None] * len(trials)
+    sims, states, taken = [], [], []
+    for trial, schedule in zip(trials, schedules):
         try:
             res = simulate(rig, trial["maneuver"], discretization or ctx["discretization"],
                            physics, duration=trial["duration"], rate_hz=ctx["rate_hz"],
-                           dt=dt, statics_guess=trial["initial_state"] if discretization is None else None)
+                           dt=dt, statics_guess=trial["initial_state"] if discretization is None else None,
+                           schedule=schedule)
+            if accurate and res.unrefined_slack:
+                res = simulate(rig, trial["maneuver"], ctx["discretization"], physics, duration=trial["duration"],
+                               rate_hz=ctx["rate_hz"], statics_guess=trial["initial_state"])
         except (SimulationError, StaticsError, FloatingPointError):
-            return None, None
+            return _Run(None, None, None)
         sims.append(channels_on(res, trial))
         states.append(res.states[0])
-    return stack_trials(ctx, sims), joined_states(ctx, states)
+        taken.append(res.schedule)
+    return _Run(stack_trials(ctx, sims), joined_states(ctx, states), tuple(taken))
 
 
 class ErrorDirections(list):
@@ -255,7 +296,7 @@ def model_error(problem, ctx, nominal_sim, workers=2):
                                     "amplitude_bound": richardson_bound(ctx["rig"], ctx["discretization"], finer)},
                  "time_step": {"compared": [f"{ctx['nominal_dt']:.3g} s", f"{0.5 * ctx['nominal_dt']:.3g} s"],
                                "amplitude_bound": 2.0}}
-    for (name, entry), (sim, _) in zip(described.items(), results):
+    for (name, entry), (sim, _, _) in zip(described.items(), results):
         if sim is None:
             entry["status"] = "failed"
             block[name] = entry
@@ -408,30 +449,37 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
     pool = _pool(workers, ctx)
     try:
         if start is None:
-            coords, sim, state = np.zeros(k), nominal_sim, ctx["initial_state"]
-            sens, failed = _sensitivities(pool, coords, np.arange(k), tol, sim, state, [None] * k)
+            coords, sim, state, schedules = np.zeros(k), nominal_sim, ctx["initial_state"], ctx.get("schedules")
+            sens, failed = _sensitivities(pool, coords, np.arange(k), tol, sim, state, [None] * k, schedules=schedules)
             n_sims = k
             # Sensitivities first: a parameter whose one-tolerance change moves
             # the weighted residual by less than SCREEN (chi2) is left nominal.
             strength = _strength(problem, sens, tol)
             moving = np.flatnonzero(strength >= SCREEN)
-            rough, fd_scale, more = _smooth_differences(problem, pool, coords, moving, tol, sim, state, sens)
+            rough, fd_scale, more = _smooth_differences(problem, pool, coords, moving, tol, sim, state, sens, schedules)
             n_sims += more
             strength = _strength(problem, sens, tol)  # a widened difference's column is its own
             active = np.array([i for i in moving if _smooth(rough, int(i))], int)
             note(f"sensitivities of {k} rig parameters done; {len(moving)} move the recording, "
                  f"{len(moving) - len(active)} of them not smoothly")
+            scale, more = _scale_gauge(problem, pool, coords, params, tol, sim, state, sens, schedules)
+            n_sims += more
+            if scale is not None:
+                active = active[active != scale["held"]]
+                note(f"the rig's scale of mass and force is not observable: {params[scale['held']].name} held")
         else:
             coords, sim, state, sens = start["coords"], start["sim"], start["initial_state"], start["sensitivities"]
+            schedules, scale = start.get("schedules"), start.get("scale")
             strength, active, failed = start["strength"], start["active"], start["failed"]
             rough, fd_scale = start.get("rough", {}), start.get("fd_scale", tol)
             n_sims = start["n_simulations"]
         offset_sd = _offset_prior(ctx)
         errs = error_directions if isinstance(error_directions, ErrorDirections) else list(error_directions)
         err_var = np.full(len(errs), ERROR_AMPLITUDE_SD**2)
-        fit = _trust_region(problem, pool, _Fit(coords, sim, state, sens), active, tol, offset_sd, errs,
+        fit = _trust_region(problem, pool, _Fit(coords, sim, state, sens, schedules), active, tol, offset_sd, errs,
                             MAX_JACOBIANS, lambda m: note(f"updating: {m}"), fd_scale=fd_scale)
         coords, sim, state, sens, nuis = fit.coords, fit.sim, fit.state, fit.sens, fit.nuisance
+        schedules = fit.schedules
         history = (start["block"]["iterations"] if start is not None else []) + fit.history
         failed = sorted(set(failed) | set(fit.failed))
         n_sims += fit.n_sims
@@ -455,21 +503,27 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
     cov = np.diag(tol**2).astype(float)  # a screened-out parameter keeps its prior
     idx = np.ix_(active, active)
     cov[idx] = robust[: len(active), : len(active)]
+    if scale is not None:
+        cov = gauge_covariance(cov, scale["direction"], scale["held"], tol)
     information = np.ones(k)  # posterior / prior sd
-    information[active] = np.sqrt(np.clip(np.diag(robust)[: len(active)], 0.0, None)) / tol[active]
+    information[active] = np.sqrt(np.clip(np.diag(cov)[active], 0.0, None)) / tol[active]
     rig, maneuver = apply_to_trials(ctx, params, coords)
     offsets = nuis[len(errs):len(errs) + c]
     block = _calibration_block(params, coords, cov, information, strength, offsets, ctx, history,
                                failed_names, rough, fd_scale / tol)
     if spread is not None:
         block["between_trials"] = _spread_block(params, coords, active, spread)
+    block["unobservable_scale"] = None if scale is None else scale_block(params, scale["direction"], scale["held"],
+                                                                          scale["response_ratio"])
     own = np.flatnonzero(shared)
     block["unresolved_combinations"] = unresolved_combinations(
         X, prior_var, own, tol[active][own], [params[active[j]].name for j in own])
-    return {"coords": coords, "sim": sim, "initial_state": state, "rig": rig, "maneuver": maneuver,
+    return {"coords": coords, "sim": sim, "initial_state": state, "schedules": schedules, "rig": rig,
+            "maneuver": maneuver,
             "sensitivities": sens, "covariance": cov, "offsets": offsets, "shift": float(nuis[-1]), "block": block,
             "n_simulations": n_sims,
-            "active": active, "strength": strength, "failed": failed, "rough": rough, "fd_scale": fd_scale}
+            "active": active, "strength": strength, "failed": failed, "rough": rough, "fd_scale": fd_scale,
+            "scale": scale}
 
 
 def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2, progress=None, value_range=None):
@@ -541,21 +595,24 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     pool = _pool(workers, job_ctx)
     try:
         firsts = (np.zeros(k + 1), np.r_[update["coords"], 0.0])
-        starts = pool.map(_rig_job, [(firsts[0], None, None, ctx["initial_state"]),
-                                     (firsts[1], None, None, update["initial_state"])])
+        plans = (ctx.get("schedules"), update.get("schedules"))
+        starts = pool.map(_rig_job, [(firsts[0], None, None, ctx["initial_state"], plans[0], True),
+                                     (firsts[1], None, None, update["initial_state"], plans[1], True)])
         n_sims = 2
-        options = [(_objective_at(problem, sim, x, tol, offset_sd, errs)[0], x, sim, st, label)
-                   for x, (sim, st), label in zip(firsts, starts, ("nominal", "updated")) if sim is not None]
+        options = [(_objective_at(problem, sim, x, tol, offset_sd, errs)[0], x, sim, st, plan, label)
+                   for x, (sim, st, plan), label in zip(firsts, starts, ("nominal", "updated"))
+                   if sim is not None]
         # Adding a mechanism can only lower the objective: a fit from nominal that ends above the updated rig
         # (with the mechanism or without it) has not converged, and the updated start is fitted too.
-        updated_objective = min([o[0] for o in options if o[4] == "updated"] + [_update_objective(update)])
+        updated_objective = min([o[0] for o in options if o[5] == "updated"] + [_update_objective(update)])
         fits = []
-        for _, coords, sim, state, label in options:
+        for _, coords, sim, state, plan, label in options:
             if fits and fits[-1].objective <= updated_objective:
                 break
-            sens, _ = _sensitivities(pool, coords, active, fd, sim, state, [*update["sensitivities"], None])
+            sens, _ = _sensitivities(pool, coords, active, fd, sim, state, [*update["sensitivities"], None],
+                                     schedules=plan)
             n_sims += len(active)
-            fit = _trust_region(problem, pool, _Fit(coords, sim, state, sens), active, tol, offset_sd, errs,
+            fit = _trust_region(problem, pool, _Fit(coords, sim, state, sens, plan), active, tol, offset_sd, errs,
                                 MAX_JACOBIANS, lambda m: note(f"joint refit with {mechanism.name}: {m}"),
                                 final_jacobian=False, scale=scale, bounds=bounds, fd_scale=fd)
             n_sims += fit.n_sims
@@ -574,8 +631,8 @@ def joint_refit(problem, ctx, update, mechanism, error_directions=(), workers=2,
     nuisance = fit.nuisance
     offsets = dict(zip(ctx["channels"], map(float, nuisance[len(errs):len(errs) + len(ctx["channels"])])))
     return {"coords": coords, "mechanism": make_mechanism(mechanism.name, **{main: value}), "sim": fit.sim,
-            "rig": rig, "maneuver": maneuver, "initial_state": state, "n_simulations": n_sims, "history": history,
-            "offsets": offsets}
+            "rig": rig, "maneuver": maneuver, "initial_state": state, "schedules": fit.schedules,
+            "n_simulations": n_sims, "history": history, "offsets": offsets}
 
 
 def _update_objective(update):
@@ -592,8 +649,8 @@ def rig_alone_channels(ctx, joint):
     what the parameters alone explain there (``_steps.credit_at_joint_rig``).
     """
     _init(dict(ctx, joint_mechanism=None))
-    sim, _ = _rig_job(np.asarray(joint["coords"], float), None, None, joint["initial_state"])
-    return sim
+    return _rig_job(np.asarray(joint["coords"], float), None, None, joint["initial_state"], joint.get("schedules"),
+                    True).sim
 
 
 def resume_update(problem, ctx, nominal_sim, update, joint, error_directions=(), workers=2, progress=None):
@@ -640,7 +697,7 @@ def resume_update(problem, ctx, nominal_sim, update, joint, error_directions=(),
     coords = np.asarray(joint["coords"], float)
     offset_sd = _offset_prior(ctx)
     _init(ctx)
-    sim, state = _rig_job(coords, None, None, joint["initial_state"])
+    sim, state, schedules = _rig_job(coords, None, None, joint["initial_state"], joint.get("schedules"), True)
     here = _objective_at(problem, update["sim"], update["coords"], tol, offset_sd, error_directions)[0]
     there = math.inf if sim is None else _objective_at(problem, sim, coords, tol, offset_sd, error_directions)[0]
     out = {"objective_updated": here, "objective_joint_rig": there, "update": None}
@@ -654,10 +711,10 @@ def resume_update(problem, ctx, nominal_sim, update, joint, error_directions=(),
     pool = _pool(workers, ctx)
     try:
         sens, failed = _sensitivities(pool, coords, update["active"], update.get("fd_scale", tol), sim, state,
-                                      update["sensitivities"])
+                                      update["sensitivities"], schedules=schedules)
     finally:
         pool.close()
-    start = dict(update, coords=coords, sim=sim, initial_state=state, sensitivities=sens,
+    start = dict(update, coords=coords, sim=sim, initial_state=state, sensitivities=sens, schedules=schedules,
                  failed=sorted(set(update["failed"]) | set(failed)),
                  n_simulations=update["n_simulations"] + 1 + len(update["active"]))
     out.update(update=update_model(problem, ctx, nominal_sim, directions, workers=workers, progress=note,
@@ -691,6 +748,8 @@ class _Fit:
     sim: np.ndarray
     state: np.ndarray
     sens: list
+    # The trials' step schedules ``sim`` was run on (the module's *Step schedule*); None: each its own.
+    schedules: tuple | None = None
     nuisance: np.ndarray | None = None
     objective: float = math.inf
     chi2: float = math.inf
@@ -747,7 +806,7 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
     if bounds is None:
         bounds = (-BOUND_TOLERANCES * scale, BOUND_TOLERANCES * scale)
     lo, hi = bounds[0][active], bounds[1][active]
-    cache = {fit.coords.tobytes(): (fit.sim, fit.state)}
+    cache = {fit.coords.tobytes(): _Run(fit.sim, fit.state, fit.schedules)}
     ahead = {}  # coords -> {parameter: its finite-difference simulation}, run beside the trial point
     spare = max(0, int(getattr(pool, "slots", 1)) - 1)
     best = {"objective": math.inf}
@@ -767,11 +826,14 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
             guess = best.get("state", fit.state)
             # Before the first Jacobian the sensitivities are given: nothing to run ahead.
             early = list(active[:spare]) if jacobians[0] > 0 else []
-            out = pool.map(_rig_job, [(coords, None, None, guess)] + [_difference_job(coords, i, fd, guess)
-                                                                        for i in early])
+            plan = best.get("schedules", fit.schedules)
+            out = pool.map(_rig_job, [(coords, None, None, guess, plan, True)] + [
+                _difference_job(coords, i, fd, guess, schedules=plan) for i in early])
             cache[key] = out[0]
             ahead.clear()
-            ahead[key] = {i: s_ for i, (s_, _) in zip(early, out[1:])}
+            # differences run ahead on the plan are the point's only where it kept the plan
+            kept = _same_schedules(out[0].schedules, plan)
+            ahead[key] = {i: run.sim for i, run in zip(early, out[1:])} if kept else {}
             fit.n_sims += 1 + len(early)
         return coords, cache[key]
 
@@ -783,13 +845,13 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
         return len(active) * max(1.0, best["chi2"] / problem.n_weighted)
 
     def fun(xa):
-        coords, (sim, state) = simulated(xa)
+        coords, (sim, state, taken) = simulated(xa)
         if sim is None:
             # A failed simulation: a step the trust region rejects (None only at the start).
             return np.full(n_rows[0], 1e6) if n_rows else None
         obj, chi2, nuis, _ = _objective_at(problem, sim, coords, tol, offset_sd, errs)
         if obj < best["objective"]:
-            best.update(objective=obj, chi2=chi2, coords=coords, sim=sim, state=state, nuisance=nuis)
+            best.update(objective=obj, chi2=chi2, coords=coords, sim=sim, state=state, nuisance=nuis, schedules=taken)
         X = _design(problem, sim, errs)
         z = (np.where(problem.valid, problem.measured - sim, 0.0) * np.sqrt(problem.W)).ravel()
         r = np.r_[z - X @ nuis, _prior_rows(nuis, coords, tol, offset_sd, errs)]
@@ -798,7 +860,7 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
         return r
 
     def jac(xa):
-        coords, (sim, state) = simulated(xa)
+        coords, (sim, state, taken) = simulated(xa)
         # trf asks for a Jacobian only at an accepted point: the next step's gain is predicted here from the
         # last Jacobian (the new one would cost its simulations).
         gain = predicted_gain(stop["J"], residuals[coords.tobytes()]) if stop["J"] is not None else None
@@ -809,7 +871,7 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
             return stop["J"]  # never used: the callback ends the fit before another step
         if jacobians[0] > 0:
             known = ahead.pop(coords.tobytes(), {})
-            fit.sens, bad = _sensitivities(pool, coords, active, fd, sim, state, fit.sens, known)
+            fit.sens, bad = _sensitivities(pool, coords, active, fd, sim, state, fit.sens, known, taken)
             fit.failed = sorted(set(fit.failed) | set(bad))
             fit.n_sims += len(active) - len(known)
         at_start = jacobians[0] == 0 and coords.tobytes() in start
@@ -831,7 +893,7 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
     start = {}  # the start's Jacobian (its sensitivities are given), which trf asks for first
     start_gain = 0.0
     if len(active):
-        coords0, (sim0, _) = simulated(x0)
+        coords0, (sim0, _, _) = simulated(x0)
         start[coords0.tobytes()] = _projected_jacobian(problem, sim0, coords0, fit.sens, active, tol, offset_sd, errs)
         start_gain = predicted_gain(start[coords0.tobytes()], residuals[coords0.tobytes()])
     fit.history[0]["predicted_gain"] = start_gain
@@ -842,7 +904,7 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
             stop["by"] = "evaluations" if ended.status == 0 else "tolerance"  # trf's own stops
     else:
         stop.update(by="gain" if len(active) else "nothing to fit", gain=start_gain)
-    fit.coords, fit.sim, fit.state = best["coords"], best["sim"], best["state"]
+    fit.coords, fit.sim, fit.state, fit.schedules = best["coords"], best["sim"], best["state"], best["schedules"]
     fit.nuisance, fit.objective, fit.chi2 = best["nuisance"], best["objective"], best["chi2"]
     # Which stop ended the fit: the gain rule, the cap, or trf's own evaluation count ("evaluations") or
     # tolerances ("tolerance"); all but the first leave a fit that had more to gain than its stop asks.
@@ -939,11 +1001,40 @@ def _main_of(mechanism):
     return mechanism_type(mechanism.name).main
 
 
-def _difference_job(coords, i, tol, guess, sign=1.0):
+def _same_schedules(a, b):
+    """Whether two runs' step schedules (per trial, ``SimulationResult.schedule``) are the same."""
+    if a is None or b is None:
+        return a is b
+    return len(a) == len(b) and all(
+        (x is None and y is None) or (x is not None and y is not None and np.array_equal(x[0], y[0])
+                                      and np.array_equal(x[1], y[1])) for x, y in zip(a, b))
+
+
+def _scale_gauge(problem, pool, coords, params, tol, sim, state, sens, schedules):
+    """``_mass_scale``'s probe: ``({"direction", "held", "response_ratio"}, 1)`` when the rig's masses and forces
+    are all free and scale together unseen, ``(None, simulations run)`` otherwise."""
+    direction = scale_direction(params)
+    if len(direction) < 2:
+        return None, 0
+    x = coords.copy()
+    x[direction] += PROBE
+    probe = pool.map(_rig_job, [(x, None, None, state, schedules)])[0]
+    if probe.sim is None:
+        return None, 1
+    sw = np.where(problem.valid, np.sqrt(problem.W), 0.0)
+    response = float(np.linalg.norm(np.nan_to_num((probe.sim - sim) * sw)))
+    parts = [PROBE * float(np.linalg.norm(np.nan_to_num(sens[i] * sw))) for i in direction]
+    if not is_pure_rescaling(response, parts):
+        return None, 1
+    held = min(direction, key=lambda i: tol[i])
+    return {"direction": direction, "held": int(held), "response_ratio": response / sum(parts)}, 1
+
+
+def _difference_job(coords, i, tol, guess, sign=1.0, schedules=None):
     """The simulation job of parameter ``i``'s finite difference at ``coords`` (``sign`` -1: the backward one)."""
     x = coords.copy()
     x[i] += sign * FD_FRACTION * tol[i]
-    return x, None, None, guess
+    return x, None, None, guess, schedules
 
 
 def one_sided_disagreement(forward, backward):
@@ -970,7 +1061,7 @@ def _strength(problem, sens, tol):
                      for s_, t in zip(sens, tol)])
 
 
-def _smooth_differences(problem, pool, coords, which, tol, sim, state, sens):
+def _smooth_differences(problem, pool, coords, which, tol, sim, state, sens, schedules=None):
     """Each parameter of ``which`` differenced backward too; where the two ways disagree beyond ``ROUGH``, both
     again over ``WIDE_STEP`` times the step. ``sens`` takes the wider forward difference where that one is smooth.
 
@@ -985,14 +1076,15 @@ def _smooth_differences(problem, pool, coords, which, tol, sim, state, sens):
     n_sims : int
     """
     fd_scale = np.asarray(tol, float).copy()
-    rough = _disagreement(problem, pool, coords, which, fd_scale, sim, state, {i: sens[i] for i in which})
+    rough = _disagreement(problem, pool, coords, which, fd_scale, sim, state, {i: sens[i] for i in which}, schedules)
     n_sims = len(which)
     wide = [i for i, d in rough.items() if d > ROUGH]
     if wide:
         trial = fd_scale.copy()
         trial[wide] *= WIDE_STEP
-        forward, _ = _sensitivities(pool, coords, wide, trial, sim, state, list(sens))
-        again = _disagreement(problem, pool, coords, wide, trial, sim, state, {i: forward[i] for i in wide})
+        forward, _ = _sensitivities(pool, coords, wide, trial, sim, state, list(sens), schedules=schedules)
+        again = _disagreement(problem, pool, coords, wide, trial, sim, state, {i: forward[i] for i in wide},
+                              schedules)
         n_sims += 2 * len(wide)
         for i, d in again.items():
             rough[i] = d
@@ -1001,19 +1093,19 @@ def _smooth_differences(problem, pool, coords, which, tol, sim, state, sens):
     return rough, fd_scale, n_sims
 
 
-def _disagreement(problem, pool, coords, which, fd_scale, sim, state, forward):
+def _disagreement(problem, pool, coords, which, fd_scale, sim, state, forward, schedules=None):
     """Parameter -> ``one_sided_disagreement`` of ``forward[i]`` and a backward difference run here."""
     sw = np.where(problem.valid, np.sqrt(problem.W), 0.0)
     out = {}
-    jobs = [_difference_job(coords, i, fd_scale, state, sign=-1.0) for i in which]
-    for i, (s_, _) in zip(which, pool.map(_rig_job, jobs) if jobs else []):
+    jobs = [_difference_job(coords, i, fd_scale, state, -1.0, schedules) for i in which]
+    for i, (s_, _, _) in zip(which, pool.map(_rig_job, jobs) if jobs else []):
         if s_ is not None:
             backward = (sim - s_) / (FD_FRACTION * fd_scale[i])
             out[int(i)] = one_sided_disagreement(np.nan_to_num(forward[i] * sw), np.nan_to_num(backward * sw))
     return out
 
 
-def _sensitivities(pool, coords, which, tol, sim, state, previous, known=None):
+def _sensitivities(pool, coords, which, tol, sim, state, previous, known=None, schedules=None):
     """Finite differences over FD_FRACTION tolerances, for the parameters ``which``, in parallel.
 
     ``known`` maps a parameter to its difference's simulation run already
@@ -1021,7 +1113,8 @@ def _sensitivities(pool, coords, which, tol, sim, state, previous, known=None):
     """
     known = dict(known or {})
     run = [i for i in which if i not in known]
-    for i, (s_, _) in zip(run, pool.map(_rig_job, [_difference_job(coords, i, tol, state) for i in run])):
+    jobs = [_difference_job(coords, i, tol, state, schedules=schedules) for i in run]
+    for i, (s_, _, _) in zip(run, pool.map(_rig_job, jobs)):
         known[i] = s_
     out = list(previous)
     failed = []
@@ -1223,6 +1316,15 @@ def _apply(X, a, problem, shape):
     return np.where(sw > 0, fitted / np.where(sw > 0, sw, 1.0), 0.0)
 
 
+def _value_or_none(parameter, coordinate):
+    """The parameter's value at a coordinate, None where it overflows."""
+    try:
+        value = parameter.value(float(coordinate))
+    except OverflowError:
+        return None
+    return value if math.isfinite(value) else None
+
+
 def _spread_block(params, coords, active, spread):
     """The JSON of ``_heterogeneity.between_trials``: per active parameter, each trial's own estimate and
     standard deviation (the parameter's units), the between-trial standard deviation and Cochran's Q."""
@@ -1231,11 +1333,13 @@ def _spread_block(params, coords, active, spread):
         p = params[i]
         if p.of_a_trial:
             continue
-        values = [p.value(float(x)) for x in spread["estimates"][:, j]]
+        values = [_value_or_none(p, x) for x in spread["estimates"][:, j]]
         scale = (lambda v, sd: v * sd) if p.scale == "log" else (lambda v, sd: sd)
         out["parameters"][p.name] = {
+            # None: a trial alone that sets the parameter beyond what a float holds (ln p past 700)
             "trial_estimates": values,
-            "trial_uncertainties": [scale(v, float(sd)) for v, sd in zip(values, spread["sd"][:, j])],
+            "trial_uncertainties": [None if v is None else scale(v, float(sd))
+                                    for v, sd in zip(values, spread["sd"][:, j])],
             "between_trials_sd": scale(p.value(float(coords[i])), float(spread["tau"][j])),
             "cochran_q": float(spread["q"][j]),
             "degrees_of_freedom": len(spread["trials"]) - 1,
