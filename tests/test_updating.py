@@ -110,8 +110,10 @@ def test_the_sensitivities_updating_returns_are_differences_at_the_point_it_retu
     for i in result["active"]:
         x = result["coords"].copy()
         x[i] += FD_FRACTION * tol[i]
+        # on the step schedule the updated rig's run took (``_updating``: every fit steps on one schedule)
         moved = simulate(*apply_parameters(ctx["rig"], ctx["maneuver"], params, x), "baseline",
-                         duration=DURATION, rate_hz=ctx["rate_hz"], statics_guess=result["initial_state"])
+                         duration=DURATION, rate_hz=ctx["rate_hz"], statics_guess=result["initial_state"],
+                         schedule=result["schedules"][0])
         fresh = (channels_on(moved, ctx) - result["sim"]) / (FD_FRACTION * tol[i])
         # (The statics start from another guess: equal to about 1e-7 of the largest.)
         np.testing.assert_allclose(result["sensitivities"][i], fresh, rtol=0, atol=1e-5 * np.abs(fresh).max())

@@ -38,9 +38,10 @@ SCALING_ROPE_FIELDS = ("static_stiffness", "viscous_stiffness", "viscous_damping
 # How far the probe moves every part of the direction, in ln p.
 PROBE = 0.01
 # The probe's response, over what its parts move the recording one at a time by the same step, below which the
-# direction is a pure rescaling. Rounding leaves 1e-16 per operation, grown by the run's steps (3e5 on a 30 s
-# flight) to at most 1e-10 of the response; a mass or force the tolerances leave out moves the response by its
-# share of the rig's forces, 1e-3 and more for any a model includes (a rope's weight on the slung load: 0.3).
+# direction is a pure rescaling: set between the arithmetic's rounding and the share of the rig's forces any part
+# a model includes carries, before either was measured. On the slung-load rig's own maneuver (4 s) the whole
+# direction read 1e-11; left out of it, the rope's weight 3e-3, its stiffness or the load's mass 0.5 (the Maxwell
+# stiffness and damping, which that still maneuver never strains, 7e-12: they carry no force there).
 SCALE_NULL = 1e-6
 
 
