@@ -18,7 +18,7 @@ from ._rates import (
 )
 from ._pipeline import fill_markers, reconstruct_markers, reconstruct_marker_file, reconstruct_session, reconstruct_vicon_csv, trajectory_from_markers
 from ._ropes import rope_length_cubic
-from ._tracked import TRACK_RATE_HZ, smoothed_track, tracked_trajectory, tracked_within_reach
+from ._tracked import MIN_SMOOTHED_SAMPLES, TRACK_RATE_HZ, smoothed_track, tracked_trajectory, tracked_within_reach
 from ._triangulate import triangulate, undistort_detections
 from ._pipeline import METHODS as TRIANGULATION_METHODS
 from ._pipeline import SMOOTHINGS as SMOOTHING_METHODS

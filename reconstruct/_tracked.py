@@ -18,7 +18,7 @@ from ._bodies import mass_centre
 from ._rates import body_rates, finite_difference
 from ._reach import check_within_reach
 
-__all__ = ["tracked_trajectory", "tracked_within_reach", "smoothed_track", "TRACK_RATE_HZ"]
+__all__ = ["tracked_trajectory", "tracked_within_reach", "smoothed_track", "TRACK_RATE_HZ", "MIN_SMOOTHED_SAMPLES"]
 
 # The rate a tracked point's smoothed track is sampled at for the model, which moves the point linearly between
 # samples. The polyline is then within a dt^2 / 8 of the spline: 1 um at the slung-load flights' largest
@@ -37,7 +37,7 @@ def smoothed_track(time, track, rate_hz=TRACK_RATE_HZ):
     maneuver's samples). On the slung-load flights (30 Hz, the drone
     tracked to a tenth of a millimetre) those jumps kicked the rope slack
     in 32 and 67 of the first 30 s's record intervals, its tension between 0
-    and 15 N, where the real drone-to-load distance never left 3.147-3.168 m;
+    and 15 N, where the real drone-to-load distance stayed within 3.13-3.18 m;
     through the smoothed track the model's rope stayed taut (1.6-9.7 N).
     Each axis is a cubic smoothing spline (``scipy.interpolate.
     make_smoothing_spline``) whose smoothing is chosen by generalized

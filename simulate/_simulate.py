@@ -414,8 +414,8 @@ def simulate(
         reference.
     schedule : tuple, optional
         An earlier run's ``SimulationResult.schedule`` (Verlet, no ``dt``;
-        the same rate and start, as long or longer): step as it did, record by record (``_tracked.integrate_tracked``'s
-        ``frozen``), so that the difference of two runs a small parameter
+        the same rate and start, as long or longer): step as it did,
+        record by record (``_tracked.integrate_tracked``'s ``frozen``), so that the difference of two runs a small parameter
         change apart is the change, not two step sequences' scatter (the
         diagnosis's finite differences). Where the rig stiffens beyond the
         schedule's margin the run steps on its own; elsewhere it refines no

@@ -208,12 +208,16 @@ def _load_tracked(path, mapping, rig, maneuver, note):
 
 def _smoothing_report(poses, tracked):
     """Each tracked point's smoothed track (``reconstruct.smoothed_track``) against its samples: the RMS (m)."""
+    from ...reconstruct import MIN_SMOOTHED_SAMPLES
+
     t = np.asarray(poses.time, float)
     out = {}
     for name, samples in poses.points.items():
         fine = tracked.points[name]
         at = np.column_stack([np.interp(t, tracked.time, fine[:, j]) for j in range(3)])
-        out[name] = {"method": "cubic smoothing spline, smoothing by generalized cross-validation",
+        smoothed = t.size >= MIN_SMOOTHED_SAMPLES  # fewer are left as they are (``smoothed_track``)
+        out[name] = {"method": "cubic smoothing spline, smoothing by generalized cross-validation" if smoothed
+                     else "the samples' polyline (too few samples to smooth)",
                      "rate_hz": float(1.0 / (tracked.time[1] - tracked.time[0])) if tracked.time.size > 1 else None,
                      "rms_from_samples_m": float(np.sqrt(np.mean(np.sum((at - samples) ** 2, axis=1))))}
     return out

@@ -41,14 +41,17 @@ The integration's step follows the rig (``simulate._tracked``): it is cut
 as ropes shorten, and a record interval where a rope element turns slack
 or taut is done again at a third of the step. Two runs a small parameter
 change apart then step differently wherever an element hangs at the slack
-point, and their difference is those two step sequences' scatter, not the
-parameter's effect: on the slung-load flights the load's mass and the
-rope's material differenced forward and backward read 2-4 apart
-(``one_sided_disagreement``), the step counts 3 % apart. So every run of
-a fit steps on one schedule, its start's (the nominal run's, the updated
-rig's for a fit from there; ``simulate``'s ``schedule``), except where the
-rig stiffens beyond the schedule's margin; the fit's objective and its
-finite differences are then one smooth function of the parameters.
+point (the hook-block crane's slings), and their difference holds those
+two step sequences' scatter beside the parameter's effect. So every run
+of a fit steps on one schedule (``simulate``'s ``schedule``): a finite
+difference on the schedule of the point it differentiates, a trial point
+on the best point's - run again on its own where a rope turned slack at a
+step the schedule had not refined, so that no point a fit may move to is
+integrated less carefully than a plain run - except where the rig
+stiffens beyond the schedule's margin. (The real slung-load flights'
+differences disagreed for another reason: the drone's track, the model's
+input, kicked the rope slack at every sample until it was smoothed,
+``reconstruct.smoothed_track``.)
 
 Model error
 -----------
@@ -130,7 +133,8 @@ SCREEN = 3.0
 # A column is used when the scatter's share of its information, rho^2, is at most SCATTER_SHARE: 0.1, ROUGH
 # 0.44. (ROUGH was 1, rho 0.8, until the real slung-load flights' rope weight, 0.90 at 0.1 tolerance, was fitted
 # to its bound there; the share was set after that, so it is judged on flights not seen with it.) The load's mass
-# and the rope's material read 2.0-3.9 there at 0.01 and 0.1 tolerance alike, the rope's length 0.21 and 0.06.
+# and the rope's material read 2.0-3.9 there at 0.01 and 0.1 tolerance alike, the rope's length 0.21 and 0.06 -
+# through the drone's raw polyline track, which kicked the rope slack; smoothed, 0.011-0.27 (docs/real-recordings.md).
 # A parameter whose column is rough at both steps is not fitted - its "information" would be that scatter - and
 # is reported not identifiable.
 SCATTER_SHARE = 0.1
