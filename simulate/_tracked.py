@@ -198,9 +198,9 @@ def integrate_tracked(y0, t0, out_dt, n_records, dt0, lam0, m, work, max_speed, 
     (``FROZEN_MARGIN``). Such a run refines no interval where an element
     turns slack or taut: the schedule says where it steps finer. An element
     that hangs at the slack point (a sling at rest) turns slack and taut at
-    the least change, and a refinement there moved the hook-block crane's
-    motion by as much as the hoist rope's stiffness did (its difference
-    forward and backward 0.9 apart, ``_updating.one_sided_disagreement``).
+    the least change: on the hook-block crane, runs 1 % of a tolerance of
+    the hoist rope's stiffness either way took 52,862 and 53,755 steps on
+    their own schedules against the base run's 53,155.
 
     ``method``: ``RK4`` (classical, four right-hand sides a step) or
     ``VERLET`` (``_verlet``, one). A tracked Verlet run does a record
