@@ -205,14 +205,16 @@ def _rig_job(coords, discretization=None, dt_factor=None, guess=None, schedules=
         schedules = [None] * len(trials)
     sims, states, taken = [], [], []
     for trial, schedule in zip(trials, schedules):
+        def run(steps):
+            return simulate(rig, trial["maneuver"], discretization or ctx["discretization"],
+                            physics, duration=trial["duration"], rate_hz=ctx["rate_hz"],
+                            dt=dt, statics_guess=trial["initial_state"] if discretization is None else None,
+                            schedule=steps)
+
         try:
-            res = simulate(rig, trial["maneuver"], discretization or ctx["discretization"],
-                           physics, duration=trial["duration"], rate_hz=ctx["rate_hz"],
-                           dt=dt, statics_guess=trial["initial_state"] if discretization is None else None,
-                           schedule=schedule)
+            res = run(schedule)
             if accurate and res.unrefined_slack:
-                res = simulate(rig, trial["maneuver"], ctx["discretization"], physics, duration=trial["duration"],
-                               rate_hz=ctx["rate_hz"], statics_guess=trial["initial_state"])
+                res = run(None)
         except (SimulationError, StaticsError, FloatingPointError):
             return _Run(None, None, None)
         sims.append(channels_on(res, trial))
