@@ -20,8 +20,10 @@ from __future__ import annotations
 import itertools
 import re
 import tempfile
-import time
 from pathlib import Path
+from time import perf_counter
+
+import numpy as np
 
 __all__ = ["bench_real", "summary_lines", "TRIAL_ROWS"]
 
@@ -124,9 +126,22 @@ def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2, known_answer=Tru
     report = leave_one_out([read[n][1] for n in names], [read[n][2] for n in names], names, progress=note,
                            on_split=first_figure, rig=rig, workers=workers, shared_frame=shared)
     report["rates_hz"] = {n: read[n][0] for n in names}
+    report["force_across_rope"] = {n: _force_across(read[n][1], read[n][2], rig) for n in names}
     if known_answer:
         report["known_answer"] = _known_answer(read, workers, note, shared_frame=shared)
     return report
+
+
+def _force_across(table, maneuver, rig):
+    """``force_across_rope`` on a flight read as the diagnosis reads it, with the drag as the rig's load's ``cd``."""
+    (point,), (body,) = maneuver.points, rig.bodies
+    time = table["time"].to_numpy()
+    anchor = np.column_stack([np.interp(time, maneuver.time, x) for x in np.asarray(maneuver.points[point]).T])
+    found = force_across_rope(time, anchor, table[[f"{body}.{q}" for q in "xyz"]].to_numpy(), [0.0, 0.0, rig.g])
+    sx, sy, sz = rig.bodies[body].size
+    area = (sx * sy + sy * sz + sx * sz) / 3.0  # aero_drag's: the box's mean face area, in air of 1.2 kg/m^3
+    found["cd"] = float(2.0 * rig.bodies[body].mass * found["drag_per_length"] / (1.2 * area))
+    return found
 
 
 def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="ropes.rope.length",
@@ -159,7 +174,7 @@ def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="rop
     names = list(read)
     fits = {}
     for label, rig_doc in (("right_file", doc), ("wrong_file", wrong_doc)):
-        started = time.perf_counter()
+        started = perf_counter()
         out = diagnose([read[n][1] for n in names], [read[n][2] for n in names], rig=rig_from_dict(rig_doc),
                        workers=workers, trial_names=names, candidates=(), shared_frame=shared_frame).doc
         entries = {e["parameter"]: e for e in out["calibration"]["parameters"]}
@@ -168,7 +183,7 @@ def _known_answer(read, workers, note, wrong=KNOWN_ANSWER_FACTOR, parameter="rop
                        "identifiable": {k: e["identifiable"] for k, e in entries.items()},
                        "unresolved_combinations": out["calibration"].get("unresolved_combinations", []),
                        "converged": out["calibration"]["converged"],
-                       "seconds": time.perf_counter() - started}
+                       "seconds": perf_counter() - started}
         note(f"known answer, {label.replace('_', ' ')} ({fits[label]['rope_length']:.3f} m): "
              f"{parameter} {fits[label]['estimate']:.4f} +- {fits[label]['uncertainty']:.2g}")
     right, off = fits["right_file"], fits["wrong_file"]
@@ -224,6 +239,11 @@ def summary_lines(report):
             for combo in f.get("unresolved_combinations", []):
                 lines.append(f"known answer, from {f['rope_length']:.3f} m: seen only together: "
                              + ", ".join(combo["parameters"]))
+    for name, f in report.get("force_across_rope", {}).items():
+        lines.append(f"{name}: force across the rope {f['rms']:.3f} m/s^2 RMS; air drag k "
+                     f"{f['drag_per_length']:.4f} /m (cd {f['cd']:.2f} on the rig's load) explains {100 * f['share_drag']:.0f} %, with a steady "
+                     f"level force ({f['steady'][0]:.3f}, {f['steady'][1]:.3f}) m/s^2 "
+                     f"{100 * f['share_drag_steady']:.0f} %")
     for key, what in (("updated_better_share", "the updated model predicts the held-out flight better than the "
                                                "nominal one"),
                       ("named_better_share", "the named model predicts it better than the updated one")):
@@ -242,3 +262,79 @@ def bench_command(args):
                         figure=getattr(args, "figure", None))
     return report, summary_lines(report)
 
+
+
+# The load's swing is 0.28 Hz and a drone's moves a few tenths of a hertz; above 1 Hz the second difference of
+# rows timed to a few milliseconds is jitter, not force.
+ACROSS_CUTOFF_HZ = 1.0
+# The zero-phase filter's start and end transients, dropped (s): five time constants of its 1 Hz corner.
+ACROSS_EDGE_S = 5.0
+
+
+def force_across_rope(time, anchor, load, gravity, cutoff_hz=ACROSS_CUTOFF_HZ, edge_s=ACROSS_EDGE_S):
+    """The force across the rope on a load hanging from a tracked point, from the tracked motion alone.
+
+    A taut rope pulls the load along itself, towards ``anchor``: per unit
+    mass, ``a - gravity = (T / m) u + f``, so the part of ``a - gravity``
+    across ``u`` is ``f``, every other force (air drag, downwash, a frame
+    not level), with no model of the rope or of the load. It is fitted by
+    quadratic drag on the load's velocity, ``-k |v| v`` across the rope,
+    plus a constant level force (a steady wind, a frame tilted from gravity).
+
+    Parameters
+    ----------
+    time : ndarray (N,)
+        Even sample times (s).
+    anchor, load : ndarray (N, 3)
+        The rope's upper end and the load's mass centre (m), in one frame.
+    gravity : ndarray (3,)
+        Gravity's acceleration in that frame (m/s^2).
+
+    Returns
+    -------
+    dict
+        ``rms`` of the force across the rope (m/s^2); ``drag_per_length``
+        (k, 1/m: ``rho cd A / (2 m)``) and ``steady`` (m/s^2, its two level
+        components, in the frame's axis order) of the fit; ``share_drag`` and ``share_drag_steady``: the shares of the
+        force's square that drag alone, and drag with the steady force,
+        explain. Samples within ``edge_s`` of either end or of a sample
+        where either end is not tracked (NaN) are left out.
+    """
+    from scipy.signal import butter, filtfilt
+
+    time = np.asarray(time, float)
+    dt = float(time[1] - time[0])
+    anchor, load = np.asarray(anchor, float), np.asarray(load, float)
+    tracked = np.isfinite(anchor).all(axis=1) & np.isfinite(load).all(axis=1)
+    if tracked.sum() < 2:
+        raise ValueError("force_across_rope: fewer than two samples with both ends tracked")
+    # A hole is bridged for the filter and, with the filter's transient about it, left out of the fit.
+    anchor, load = (np.column_stack([np.interp(time, time[tracked], x[tracked]) for x in v.T]) for v in (anchor, load))
+    b, a = butter(4, cutoff_hz * 2.0 * dt)
+    anchor, load = (filtfilt(b, a, x, axis=0) for x in (anchor, load))
+    velocity = np.gradient(load, dt, axis=0)
+    specific = np.gradient(velocity, dt, axis=0) - np.asarray(gravity, float)
+    u = anchor - load
+    u /= np.linalg.norm(u, axis=1)[:, None]
+
+    def across(x):
+        return x - np.einsum("ij,ij->i", x, u)[:, None] * u
+
+    near_hole = np.convolve(~tracked, np.ones(2 * int(np.ceil(edge_s / dt)) + 1), mode="same") > 0
+    kept = (time >= time[0] + edge_s) & (time <= time[-1] - edge_s) & ~near_hole
+    force = across(specific)[kept].ravel()
+    drag = -across(np.linalg.norm(velocity, axis=1)[:, None] * velocity)[kept].ravel()
+    # Horizontal: across a rope that hangs near vertical a vertical constant is not seen.
+    level = np.eye(3)[np.sort(np.argsort(np.abs(np.asarray(gravity, float)))[:2])]
+    steady = [across(np.broadcast_to(e, load.shape))[kept].ravel() for e in level]
+
+    def fit(columns):
+        design = np.column_stack(columns)
+        coef = np.linalg.lstsq(design, force, rcond=None)[0]
+        return coef, 1.0 - float(np.sum((force - design @ coef) ** 2) / np.sum(force**2))
+
+    _, share_drag = fit([drag])
+    both, share_both = fit([drag, *steady])
+    return {"rms": float(np.sqrt(np.mean(force**2) * 3)), "drag_per_length": float(both[0]),
+            "steady": both[1:].tolist(), "share_drag": share_drag,
+            "share_drag_steady": share_both}

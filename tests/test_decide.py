@@ -5,6 +5,7 @@ the policy itself, one rule at a time, with hypotheses whose held-out
 figures are chosen to sit either side of each rule's limit.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -342,3 +343,26 @@ def test_with_tolerances_only_offsets_beyond_the_factor_times_calibration_are_an
     half = MachineScale(swing_hz=MachineScale().swing_hz * math.sqrt(2.0))
     assert half.length == pytest.approx(0.5)
     assert judge_offsets(_offsets_state(near, scale=half)).too_far == ["bucket.x"]
+
+
+def test_a_candidate_whose_simulations_mostly_failed_is_said_not_judged():
+    # On the real flights the updated rope came out 25 times lighter than its file's, and air drag at the load
+    # blew up in 5 of its 6 simulations there: no held-out gain, no fit, and without this note the reason said
+    # only that no candidate beat noise. A failure in a minority of a candidate's points is a search's edge.
+    from dragline.compare.diagnose._state import DiagnosisState, NullTest
+    from dragline.compare.diagnose._steps import decide_verdict
+
+    null = NullTest(threshold=THRESHOLD, noise_threshold=THRESHOLD, surrogate_quantile=0.0, kappa=1.0,
+                    allowance=0.0, excess=0.0, share=0.0, own_error=0.0)
+    failed = dict(_hypothesis("aero_drag@load", 0.0, 11.9, 11.9), n_simulations=6, n_failed=5)
+    edge = dict(_hypothesis("pulley_inertia", 0.0, 11.9, 11.9), n_simulations=6, n_failed=2)
+    state = DiagnosisState(measured=None, rig=None, maneuver=None, null=null, hypotheses=[edge, failed],
+                           structured_before=[{"channel": "load.y", "window": "phase 8", "t_start": 7.0,
+                                               "t_end": 8.0}])
+    decided = decide_verdict(state)
+    assert decided.verdict == "unexplained"
+    assert decided.reason.endswith("; not judged: aero_drag@load (5 of 6 simulations failed): the simulation blew "
+                                   "up or found no equilibrium at the rig the candidates were fitted on")
+    alone = dataclasses.replace(state, hypotheses=[edge])
+    assert decide_verdict(alone).reason == decide([edge], THRESHOLD, state.structured_before, [],
+                                                  noise_threshold=THRESHOLD)[1]

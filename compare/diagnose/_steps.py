@@ -910,11 +910,17 @@ def decide_verdict(state):
                              offsets_ok=not state.too_far, offsets_note=state.offsets_note,
                              updates=significant_updates(state.update), noise_threshold=state.null.noise_threshold)
     left = state.offsets_left
-    findings = [c for c in state.recording.channels if state.update is not None and c in left
-                and abs(left[c]) > state.recording.scale.floor(OFFSET_FINDING, channel_kind(c), math.inf)]
+    findings = [] if state.update is None else [
+        c for c in state.recording.channels
+        if c in left and abs(left[c]) > state.recording.scale.floor(OFFSET_FINDING, channel_kind(c), math.inf)]
     if findings and not state.too_far:
         reason += ("; finding: constant offsets no parameter within tolerance explains on "
                    + ", ".join(f"{c} ({left[c]:+.3g})" for c in findings))
+    unjudged = [h for h in state.hypotheses if h.get("n_simulations") and 2 * h.get("n_failed", 0) > h["n_simulations"]]
+    if unjudged:
+        reason += ("; not judged: " + ", ".join(f"{h['name']} ({h['n_failed']} of {h['n_simulations']} simulations "
+                                                 "failed)" for h in unjudged)
+                   + ": the simulation blew up or found no equilibrium at the rig the candidates were fitted on")
     first = state.superseded
     if first is not None and first["taken_up"]:
         reason += (f"; updating had stopped short: {first['lead']}'s joint rig fitted better without it, so "
