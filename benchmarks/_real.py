@@ -12,7 +12,8 @@ dataset's mapping with the clock recovered from the motion.
 Leave one flight out: for each flight, the diagnosis fits all the others
 together (the rig's parameters and a mechanism's shared, each flight its
 own offsets) and predicts the one left out with the nominal, the updated
-and the named model.
+and the named model. Beside it, ``force_across_rope`` measures, with no
+model at all, what pushes each flight's load across its rope.
 """
 
 from __future__ import annotations
@@ -30,6 +31,13 @@ __all__ = ["bench_real", "summary_lines", "TRIAL_ROWS"]
 TRIAL_ROWS = 900
 # The known answer: the rig file's rope length put this much wrong on purpose (issue 36: 5 %).
 KNOWN_ANSWER_FACTOR = 1.05
+# The load's swing is 0.28 Hz and a drone's moves a few tenths of a hertz; above 1 Hz the second difference of
+# rows timed to a few milliseconds is jitter, not force.
+ACROSS_CUTOFF_HZ = 1.0
+# The zero-phase filter's start and end transients, dropped (s): five time constants of its 1 Hz corner.
+ACROSS_EDGE_S = 5.0
+# Less than this left (s) is less than two of the swing's periods: no estimate.
+ACROSS_KEPT_S = 7.0
 _HERE = Path(__file__).resolve().parent / "real"
 RIG = _HERE / "stormlord.toml"
 MAPPING = _HERE / "stormlord_mapping.toml"
@@ -138,6 +146,8 @@ def _force_across(table, maneuver, rig):
     time = table["time"].to_numpy()
     anchor = np.column_stack([np.interp(time, maneuver.time, x) for x in np.asarray(maneuver.points[point]).T])
     found = force_across_rope(time, anchor, table[[f"{body}.{q}" for q in "xyz"]].to_numpy(), [0.0, 0.0, rig.g])
+    if found is None:
+        return None
     sx, sy, sz = rig.bodies[body].size
     area = (sx * sy + sy * sz + sx * sz) / 3.0  # aero_drag's: the box's mean face area, in air of 1.2 kg/m^3
     found["cd"] = float(2.0 * rig.bodies[body].mass * found["drag_per_length"] / (1.2 * area))
@@ -240,9 +250,14 @@ def summary_lines(report):
                 lines.append(f"known answer, from {f['rope_length']:.3f} m: seen only together: "
                              + ", ".join(combo["parameters"]))
     for name, f in report.get("force_across_rope", {}).items():
+        if f is None:
+            lines.append(f"{name}: too short to measure the force across the rope (under {ACROSS_KEPT_S:g} s "
+                         f"{ACROSS_EDGE_S:g} s from its ends)")
+            continue
         lines.append(f"{name}: force across the rope {f['rms']:.3f} m/s^2 RMS; air drag k "
-                     f"{f['drag_per_length']:.4f} /m (cd {f['cd']:.2f} on the rig's load) explains {100 * f['share_drag']:.0f} %, with a steady "
-                     f"level force ({f['steady'][0]:.3f}, {f['steady'][1]:.3f}) m/s^2 "
+                     f"{f['drag_per_length']:.4f} /m (cd {f['cd']:.2f} on the rig's load) explains "
+                     f"{100 * f['share_drag']:.0f} %, with a steady level force "
+                     f"({f['steady'][0]:.3f}, {f['steady'][1]:.3f}) m/s^2 "
                      f"{100 * f['share_drag_steady']:.0f} %")
     for key, what in (("updated_better_share", "the updated model predicts the held-out flight better than the "
                                                "nominal one"),
@@ -262,13 +277,6 @@ def bench_command(args):
                         figure=getattr(args, "figure", None))
     return report, summary_lines(report)
 
-
-
-# The load's swing is 0.28 Hz and a drone's moves a few tenths of a hertz; above 1 Hz the second difference of
-# rows timed to a few milliseconds is jitter, not force.
-ACROSS_CUTOFF_HZ = 1.0
-# The zero-phase filter's start and end transients, dropped (s): five time constants of its 1 Hz corner.
-ACROSS_EDGE_S = 5.0
 
 
 def force_across_rope(time, anchor, load, gravity, cutoff_hz=ACROSS_CUTOFF_HZ, edge_s=ACROSS_EDGE_S):
@@ -295,10 +303,12 @@ def force_across_rope(time, anchor, load, gravity, cutoff_hz=ACROSS_CUTOFF_HZ, e
     dict
         ``rms`` of the force across the rope (m/s^2); ``drag_per_length``
         (k, 1/m: ``rho cd A / (2 m)``) and ``steady`` (m/s^2, its two level
-        components, in the frame's axis order) of the fit; ``share_drag`` and ``share_drag_steady``: the shares of the
-        force's square that drag alone, and drag with the steady force,
-        explain. Samples within ``edge_s`` of either end or of a sample
-        where either end is not tracked (NaN) are left out.
+        components, in the frame's axis order) of the fit; ``share_drag``
+        and ``share_drag_steady``: the shares of the force's square that
+        drag alone, and drag with the steady force, explain. Samples
+        within ``edge_s`` of either end or of a sample where either end is
+        not tracked (NaN) are left out; None when less than
+        ``ACROSS_KEPT_S`` is left.
     """
     from scipy.signal import butter, filtfilt
 
@@ -322,6 +332,8 @@ def force_across_rope(time, anchor, load, gravity, cutoff_hz=ACROSS_CUTOFF_HZ, e
 
     near_hole = np.convolve(~tracked, np.ones(2 * int(np.ceil(edge_s / dt)) + 1), mode="same") > 0
     kept = (time >= time[0] + edge_s) & (time <= time[-1] - edge_s) & ~near_hole
+    if kept.sum() * dt < ACROSS_KEPT_S:
+        return None
     force = across(specific)[kept].ravel()
     drag = -across(np.linalg.norm(velocity, axis=1)[:, None] * velocity)[kept].ravel()
     # Horizontal: across a rope that hangs near vertical a vertical constant is not seen.
