@@ -368,7 +368,7 @@ def assemble(rig, maneuver, discretization="baseline", physics=(), dissipation=T
         # The statics' relaxation scales accelerations down (fictitious masses, _statics); 1 in a simulation.
         "part_accel_scale": np.ones(len(part_seg)),
         "body_accel_scale": np.ones(len(bodies)),
-        "body_cda": np.zeros(len(bodies)),
+        "body_cda": np.array([b.drag_area for b in bodies], float),
         "body_lin_drag": np.zeros(len(bodies)),  # N s/m: a force -c v on the body's mass centre
         "seg_cda": np.zeros(len(seg_names)),
         "air_density": 1.2,

@@ -41,6 +41,7 @@ class BodySpec:
     markers: dict = field(default_factory=dict)
     position: np.ndarray | None = None  # starting guess for the statics (rigs other than the dragline)
     euler_sequence: str = PAPER_SEQUENCE  # its output channels' rotation order (``_kinematics.EULER_SEQUENCES``)
+    drag_area: float = 0.0  # quadratic air drag's cd A (m^2) at the mass centre
 
 
 @dataclass(frozen=True)
@@ -344,6 +345,7 @@ def _body(name, b, source):
         markers={k: _vec(v, f"{name}.markers.{k}") for k, v in b.get("markers", {}).items()},
         position=_vec(b["position"], f"{name}.position") if "position" in b else None,
         euler_sequence=b.get("euler_sequence", PAPER_SEQUENCE),
+        drag_area=float(b.get("drag_area", 0.0)),
     )
 
 

@@ -62,6 +62,9 @@ class Body(_Strict):
         None, min_length=3, max_length=3, description="Ixy, Ixz, Iyz (kg m^2)")
     size: Optional[list[_Positive]] = Field(None, min_length=3, max_length=3,
                                             description="box about the reference point (m)")
+    drag_area: float = Field(0.0, ge=0.0, le=1e3, allow_inf_nan=False,
+                             description="quadratic air drag at the mass centre: drag coefficient times area "
+                             "(m^2), a force 0.5 rho cd A v^2 against the velocity, in air of 1.2 kg/m^3; 0: none")
     points: dict[str, _Vec3] = Field(default_factory=dict, description="rope attachment points (m)")
     markers: dict[str, _Vec3] = Field(default_factory=dict, description="marker positions (m)")
     position: Optional[_Vec3] = Field(None, description="starting guess for the statics (m, inertial)")

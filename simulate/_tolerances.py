@@ -14,7 +14,8 @@ A key names what it moves:
 
 - ``bodies.<body>.mass``, ``bodies.<body>.cg_x`` (or ``cg_y``, ``cg_z``),
   ``bodies.<body>.inertia_x`` (or ``inertia_y``, ``inertia_z``: a principal
-  moment, about the body's axis; it multiplies what the mass leaves)
+  moment, about the body's axis; it multiplies what the mass leaves),
+  ``bodies.<body>.drag_area`` (its air drag's cd A, m^2)
 - ``bodies.<body>.points.<point>.x`` (or ``y``, ``z``): where a rope is
   attached on a body (body frame), as a tape measures it
 - ``ropes.<group>.<property>`` with ``<property>`` one of
@@ -155,6 +156,9 @@ def parse_tolerances(doc, bodies, ropes, fixed, source="rig", winches=None):
             else:
                 kind, fld, nominal, unit = "cg", parts[2][-1], float(body.cg_body[_AXES[parts[2][-1]]]), "m"
             targets = (parts[1],)
+        elif parts[0] == "bodies" and len(parts) == 3 and parts[1] in bodies and parts[2] == "drag_area":
+            kind, fld, nominal, unit = "drag_area", "drag_area", bodies[parts[1]].drag_area, "m^2"
+            targets = (parts[1],)
         elif parts[0] == "bodies" and len(parts) == 3 and parts[1] in bodies \
                 and parts[2] in ("inertia_x", "inertia_y", "inertia_z"):
             k = _AXES[parts[2][-1]]
@@ -252,6 +256,8 @@ def apply_parameters(rig, maneuver, parameters, coordinates):
                 bodies[t] = dataclasses.replace(bodies[t], cg_body=cg)
             elif p.kind == "rope":
                 ropes[t] = dataclasses.replace(ropes[t], **{p.field: value})
+            elif p.kind == "drag_area":
+                bodies[t] = dataclasses.replace(bodies[t], drag_area=value)
             elif p.kind == "fixed_point":
                 xyz = fixed[t].copy()
                 xyz[_AXES[p.field]] = value

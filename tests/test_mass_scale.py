@@ -24,7 +24,7 @@ def test_the_direction_is_every_free_mass_and_rope_force_and_weight_and_nothing_
     names = [params[i].name for i in scale_direction(params)]
     assert sorted(names) == sorted(["bodies.load.mass", "ropes.rope.static_stiffness",
                                     "ropes.rope.viscous_stiffness", "ropes.rope.viscous_damping",
-                                    "ropes.rope.weight_per_length"])
+                                    "ropes.rope.weight_per_length", "bodies.load.drag_area"])
 
 
 def test_the_held_parameters_prior_moves_every_part_of_the_direction_together():

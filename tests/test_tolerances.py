@@ -12,6 +12,7 @@ import pytest
 
 from dragline.simulate import (
     apply_parameters,
+    default_maneuver,
     dig_maneuver,
     draw_parameters,
     load_rig,
@@ -227,7 +228,7 @@ def test_with_the_anchors_track_prescribed_only_the_loads_mass_against_the_ropes
     drone = rig.fixed_points["drone"] + np.column_stack([move, 0.4 * move, -0.2 * move])
     maneuver = Maneuver(t, {}, {"drone": drone})
     forces = {"bodies.load.mass", "ropes.rope.static_stiffness", "ropes.rope.viscous_stiffness",
-              "ropes.rope.viscous_damping", "ropes.rope.weight_per_length"}
+              "ropes.rope.viscous_damping", "ropes.rope.weight_per_length", "bodies.load.drag_area"}
     assert forces <= {p.name for p in rig.tolerances}
 
     def load_track(scaled):
@@ -241,3 +242,39 @@ def test_with_the_anchors_track_prescribed_only_the_loads_mass_against_the_ropes
     np.testing.assert_allclose(load_track(forces), nominal, rtol=0, atol=1e-9)
     held_weight = load_track(forces - {"ropes.rope.weight_per_length"})
     assert np.abs(held_weight - nominal).max() > 1e-4
+    held_drag = load_track(forces - {"bodies.load.drag_area"})  # the load's air drag is a force too
+    assert np.abs(held_drag - nominal).max() > 1e-4
+
+
+def test_a_bodys_drag_area_is_the_air_drag_the_candidate_would_add_and_its_tolerance_moves_it():
+    """The slung load's box given cd A in its rig file swings as the drag-free file under aero_drag at the cd
+    whose mean face area makes that cd A (one drag law); the candidate then adds to the file's drag,
+    and the drag area's tolerance moves it as the file's value would."""
+    import dataclasses
+
+    from dragline.simulate import parse_physics
+
+    rig = load_rig("slung_load")
+    sx, sy, sz = rig.bodies["load"].size
+    area = (sx * sy + sy * sz + sx * sz) / 3.0
+    dragged = dataclasses.replace(rig, bodies={"load": dataclasses.replace(rig.bodies["load"], drag_area=2.0 * area)})
+
+    def track(r, physics=()):
+        return simulate(r, physics=list(physics), duration=6.0, rate_hz=50.0).table[["load.x", "load.y"]].to_numpy()
+
+    by_file = track(dragged)
+    # the same law: apart only by the rounding of cd A's two products
+    np.testing.assert_allclose(by_file, track(rig, [parse_physics("aero_drag:cd=2.0,body=load")]), rtol=0, atol=1e-12)
+    assert np.abs(by_file - track(rig)).max() > 1e-3  # the drag is felt
+    np.testing.assert_allclose(track(dragged, [parse_physics("aero_drag:cd=1.0,body=load")]),
+                               track(rig, [parse_physics("aero_drag:cd=3.0,body=load")]), rtol=0, atol=1e-12)
+    doc = tomllib.loads(resources.files("dragline.simulate").joinpath("data/slung_load.toml").read_text())
+    doc["bodies"]["load"]["drag_area"] = 2.0 * area
+    doc["tolerances"] = {"bodies.load.drag_area": {"factor": 2.0}}
+    del doc["maneuver"]
+    filed = rig_from_dict(doc)
+    (p,) = filed.tolerances
+    assert (p.kind, p.nominal, p.unit) == ("drag_area", 2.0 * area, "m^2")
+    moved, _ = apply_parameters(filed, default_maneuver(rig), [p], [math.log(1.5)])
+    assert moved.bodies["load"].drag_area == pytest.approx(3.0 * area, rel=1e-12)
+    assert filed.bodies["load"].drag_area == 2.0 * area

@@ -3,7 +3,7 @@
 Newton's law for every body and rope particle, M x'' = F(x, x') + M g,
 keeps its solutions when every mass (a body's with its inertia, a rope's
 weight per length) and every force coefficient (a rope's static and
-viscous stiffness, its damping) are multiplied by one factor: gravity is
+viscous stiffness, its damping, a body's air drag) are multiplied by one factor: gravity is
 an acceleration, a tracked point's track and a winch's lengths are
 kinematic, and the recording measures positions, angles and rope lengths.
 So when the rig's tolerances free every mass and every force coefficient
@@ -50,7 +50,7 @@ def scale_direction(parameters):
     ``RigParameter`` list, a trial's own ones included)."""
     return [i for i, p in enumerate(parameters)
             if p.scale == "log" and not p.of_a_trial
-            and (p.kind == "mass" or (p.kind == "rope" and p.field in SCALING_ROPE_FIELDS))]
+            and (p.kind in ("mass", "drag_area") or (p.kind == "rope" and p.field in SCALING_ROPE_FIELDS))]
 
 
 def is_pure_rescaling(response, parts):

@@ -27,7 +27,8 @@ class AeroDrag(MechanismType):
         which = parameters["body"]
         for b in bodies(model, which):
             sx, sy, sz = model.rig.bodies[model.body_names[b]].size
-            a["body_cda"][b] = parameters["cd"] * (sx * sy + sy * sz + sx * sz) / 3.0
+            # on top of the drag the rig file gives the body (its drag_area)
+            a["body_cda"][b] += parameters["cd"] * (sx * sy + sy * sz + sx * sz) / 3.0
         for s, name in enumerate(model.seg_names if which == "all" else ()):
             a["seg_cda"][s] = parameters["cd"] * model.rig.ropes[name].diameter
         a["air_density"] = parameters["air_density"]
