@@ -233,8 +233,6 @@ def test_bench_real_leaves_each_flight_out_and_predicts_it(tmp_path):
     assert not any(known[f]["identifiable"]["bodies.load.mass"] for f in ("right_file", "wrong_file"))
     # 10 s, of which the filter's transients take 5 s at each end: too short for the force across the rope.
     assert report["force_across_rope"] == {"rosbag_15": None, "rosbag_19": None}
-    # 10 s, of which the filter's transients take 5 s at each end: too short for the force across the rope.
-    assert report["force_across_rope"] == {"rosbag_15": None, "rosbag_19": None}
 
 
 def test_rows_that_cannot_be_timed_are_repeats_and_glitches_and_nothing_else():
