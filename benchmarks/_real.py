@@ -106,7 +106,9 @@ def bench_real(data, rows=TRIAL_ROWS, progress=None, workers=2, known_answer=Tru
         ``compare.diagnose.leave_one_out``'s summary over the flights
         (``splits``, ``verdicts``, ``verdict_agreement``, ``parameters``,
         ``updated_better_share``, ``named_better_share``), each flight's
-        ``rates_hz``, and ``known_answer`` (``_known_answer``:
+        ``rates_hz`` and ``force_across_rope`` (``force_across_rope``,
+        its drag also as the rig's load's ``cd``; None for a flight too
+        short), and ``known_answer`` (``_known_answer``:
         the rope's length put 5 % wrong in the rig file, recovered or not).
         ``figure``: a PNG path where the first flight left out is drawn
         against each model's prediction.
