@@ -415,9 +415,10 @@ def simulate(
     schedule : tuple, optional
         An earlier run's ``SimulationResult.schedule`` (Verlet, no ``dt``;
         the same rate and start, as long or longer): step as it did,
-        record by record (``_tracked.integrate_tracked``'s ``frozen``), so that the difference of two runs a small parameter
-        change apart is the change, not two step sequences' scatter (the
-        diagnosis's finite differences). Where the rig stiffens beyond the
+        record by record (``_tracked.integrate_tracked``'s ``frozen``), so
+        that the difference of two runs a small parameter change apart is
+        the change, not two step sequences' scatter (the diagnosis's
+        finite differences). Where the rig stiffens beyond the
         schedule's margin the run steps on its own; elsewhere it refines no
         interval the schedule did not, wherever an element turns slack or
         taut (``_tracked.integrate_tracked``).

@@ -3,9 +3,10 @@
 Newton's law for every body and rope particle, M x'' = F(x, x') + M g,
 keeps its solutions when every mass (a body's with its inertia, a rope's
 weight per length) and every force coefficient (a rope's static and
-viscous stiffness, its damping, a body's air drag) are multiplied by one factor: gravity is
-an acceleration, a tracked point's track and a winch's lengths are
-kinematic, and the recording measures positions, angles and rope lengths.
+viscous stiffness, its damping, a body's air drag) are multiplied by one
+factor: gravity is an acceleration, a tracked point's track and a winch's
+lengths are kinematic, and the recording measures positions, angles and
+rope lengths.
 So when the rig's tolerances free every mass and every force coefficient
 of its model, that common factor is not identifiable from any recording
 of the motion - only a measured force (a rope's tension) or a mass
