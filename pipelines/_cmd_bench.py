@@ -53,7 +53,8 @@ def add_parser(sub):
                    help="diagnosis: the session `dragline run --seed SEED` builds (made first) instead of the sample")
     add_scheduler_option(p)
     p.add_argument("--data", metavar="DIR",
-                   help="real: the flights' folder (the Stormlord repository's data_combined_system)")
+                   help="real: the flights' folder, any depth: the Stormlord flights' rosbag_NN folders "
+                        "and/or the three-drone box logs (*_logger1.txt); docs/real-recordings.md")
     p.add_argument("--figure", metavar="FILE.png",
                    help="real: the first flight left out, drawn against each model's prediction")
     p.add_argument("--records", metavar="FILE", nargs="+",

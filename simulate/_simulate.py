@@ -14,7 +14,7 @@ from ._maneuver import default_maneuver
 from ._model import assemble
 from ._release import POSE_COORDINATES, let_go
 from ._rig import load_rig
-from ._statics import solve_statics
+from ._statics import StaticsError, solve_statics
 from ._time_step import start_time_step
 from ._tracked import MAX_STEPS, NO_REFINEMENT, NO_SCHEDULE, RK4, VERLET, integrate_tracked
 from ._table import trajectory_columns
@@ -301,6 +301,55 @@ def _check_strain(model, state, t, how):
                              "far from the machine's?)")
 
 
+# The first fraction of a start's displacement from rest its held statics are solved at (``_settled_from_rest``),
+# and the least it halves to where a step fails.
+HOLD_STEP, HOLD_STEP_MIN = 0.25, 1.0 / 64.0
+
+
+def _settled_from_rest(model, rig, t0, rest, release):
+    """The statics of a start given ``about_rest``, reached from the rest pose ``rest`` in steps.
+
+    The held bodies are moved from rest by a fraction of their
+    displacement at a time (``HOLD_STEP``, halved where a step's statics
+    fail, down to ``HOLD_STEP_MIN``), each statics starting from the one
+    before: the second way to a start's statics, where the first (from
+    the rig's rough hanging pose, relaxed, then Newton) did not converge.
+    That one failed or not on the held statics of a box turned 0.2 rad on
+    three taut cables (the three-drone flights, ``docs/real-recordings.md``)
+    with a lid point moved by 0.2 mm, and the diagnosis's finite
+    differences failed with it; this one starts each Newton next to its
+    answer. Either ends at the balance to the statics' tolerance.
+    """
+    y, done, step, eq = np.array(rest, float), 0.0, HOLD_STEP, None
+    while done < 1.0:
+        fraction = min(1.0, done + step)
+        part = {name: dict(pose, position=fraction * np.asarray(pose["position"], float),
+                           angles=fraction * np.asarray(pose.get("angles", np.zeros(3)), float))
+                if pose.get("about_rest") else pose for name, pose in release.items()}
+        held = _held_pose(rig, _about_rest(model, rest, part))
+        try:
+            eq = solve_statics(model, t0, y0=_placed(model, y, held), held=held)
+        except StaticsError:
+            if step / 2.0 < HOLD_STEP_MIN:
+                raise
+            step /= 2.0
+            continue
+        y, done = eq.state, fraction
+    return eq
+
+
+def _placed(model, state, held):
+    """``state`` with each held body moved to its held pose but for the coordinates the ropes settle."""
+    state = np.array(state, float)
+    for name, (position, angles, settled) in held.items():
+        b = model.body_names.index(name)
+        pose = np.r_[position, angles]
+        for k, at in enumerate((0, 1, 2, 6, 7, 8)):
+            if k not in settled:
+                state[12 * b + at] = pose[k]
+    return state
+
+
 def _about_rest(model, rest, release):
     """``release`` with each pose given ``about_rest`` (a displacement from the rest pose ``rest``) made absolute.
 
@@ -462,11 +511,18 @@ def simulate(
             guess = statics_guess
         release = (maneuver.start or rig.release) if release is None else release
         if release and any(pose.get("about_rest") for pose in release.values()):
-            release = _about_rest(nominal, solve_statics(nominal, t0, y0=guess).state, release)
-        held = None if not release else _held_pose(rig, release)
-        eq = solve_statics(nominal, t0, y0=guess if held is None else None, held=held)
+            rest = solve_statics(nominal, t0, y0=guess).state
+            absolute = _about_rest(nominal, rest, release)
+            try:
+                eq = solve_statics(nominal, t0, held=_held_pose(rig, absolute))
+            except StaticsError:
+                eq = _settled_from_rest(nominal, rig, t0, rest, release)
+            release = absolute
+        else:
+            held = None if not release else _held_pose(rig, release)
+            eq = solve_statics(nominal, t0, y0=guess if held is None else None, held=held)
         y0, residual = eq.state, eq.residual
-        _check_strain(nominal, y0, t0, "held where its release says" if held else "at rest")
+        _check_strain(nominal, y0, t0, "held where its release says" if release else "at rest")
         if release:
             y0 = let_go(nominal, y0, t0, release)
     else:

@@ -179,6 +179,30 @@ def test_on_the_real_three_drone_flights_the_start_read_follows_the_boxs_first_t
     assert np.abs(np.asarray(rest.table["box.yaw"], float)[:4] - yaw).max() > 0.2
 
 
+def test_a_start_held_from_rest_in_steps_is_the_one_held_in_one_step_where_both_converge(box):
+    """The held statics' second way (``_settled_from_rest``: from rest a quarter of the displacement at a time)
+    ends where the first (from the rough hanging pose) ends: one equilibrium, the held coordinates where the
+    start puts them, every force balanced to the statics' tolerance - on a start as the real flights have them
+    (turned 0.5 rad, moved 3 cm, the height and tilts settled)."""
+    from dragline.simulate._simulate import _about_rest, _held_pose, _settled_from_rest
+
+    maneuver = default_maneuver(box)
+    model = assemble(box, maneuver, "baseline")
+    rest = solve_statics(model, 0.0).state
+    start = {"box": {"position": np.array([0.03, -0.02, 0.0]), "angles": np.array([0.0, 0.0, 0.5]),
+                     "settled": ("z", "roll", "pitch"), "about_rest": True}}
+    held = _held_pose(box, _about_rest(model, rest, start))
+    one = solve_statics(model, 0.0, held=held)
+    steps = _settled_from_rest(model, box, 0.0, rest, start)
+    assert max(one.residual, steps.residual) < 1e-6
+    np.testing.assert_allclose(steps.state[:12], one.state[:12], atol=1e-7)
+    np.testing.assert_allclose(steps.state[model.o_part:model.o_vel], one.state[model.o_part:model.o_vel], atol=1e-7)
+    position, angles, _ = held["box"]
+    np.testing.assert_allclose(steps.state[[0, 1, 8]], [position[0], position[1], angles[2]], atol=1e-12)
+    # turned on its taut cables the box rises: the settled height is not rest's
+    assert steps.state[2] < rest[2] - 1e-3
+
+
 def test_a_held_out_trials_own_start_and_cable_ends_are_fitted_on_its_first_swing_alone(box):
     # truth: a finer box mid-swing whose first cable hangs 3 cm (x) off its drone's tracked origin, filmed at 10 Hz;
     # the held-out trial's own parameters (its start, each drone's cable end) fitted on its conditioning window

@@ -183,14 +183,14 @@ def _flights_folder(tmp_path):
     """The excerpts laid out as the repository's data_combined_system holds its flights."""
     for flight in ("rosbag_15", "rosbag_19"):
         folder = tmp_path / flight
-        folder.mkdir()
+        folder.mkdir(parents=True)
         (folder / "dataset.csv").write_bytes((DATA / f"{flight}_rows_0_899.csv").read_bytes())
         (folder / "metadata.yaml").write_bytes((DATA / f"{flight}_metadata.yaml").read_bytes())
     return tmp_path
 
 
 def test_a_flights_row_rate_is_its_camera_topic_count_over_the_bags_duration():
-    from dragline.benchmarks._real import row_rate
+    from dragline.benchmarks._real_stormlord import row_rate
 
     # metadata.yaml of flight 15: 6962 /payload/world_pose messages in 235175024111 ns.
     assert row_rate(DATA / "rosbag_15_metadata.yaml") == pytest.approx(6962 / 235.175024111, rel=1e-12)
@@ -202,10 +202,15 @@ def test_bench_real_leaves_each_flight_out_and_predicts_it(tmp_path):
     from dragline.benchmarks import bench_real
 
     # The first 300 rows (10 s: the hover and the first moves) of each excerpt, to keep the suite's time.
-    report = bench_real(_flights_folder(tmp_path), rows=300, figure=tmp_path / "held_out.png")
+    # The flights lie a folder deeper than --data, as a user's download might.
+    _flights_folder(tmp_path / "downloads")
+    report = bench_real(tmp_path, rows=300, figure=tmp_path / "held_out.png")
     assert (tmp_path / "held_out.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert list(report["datasets"]) == ["stormlord"]
+    report = report["datasets"]["stormlord"]
     assert [(s["held_out"], s["fitted"]) for s in report["splits"]] == [("rosbag_15", ["rosbag_19"]),
                                                                         ("rosbag_19", ["rosbag_15"])]
+    assert report["skipped"] == {}
     for split in report["splits"]:
         assert split["verdict"] in ("none", "unexplained", "aero_drag", "rope_bending_damping"), split["reason"]
         rms = split["held_out_rms_noise"]
@@ -218,11 +223,15 @@ def test_bench_real_leaves_each_flight_out_and_predicts_it(tmp_path):
     assert report["parameters"]["ropes.rope.length"]["n"] == 2
     assert report["updated_better_share"] in (0.0, 0.5, 1.0)
     # The known answer: both flights fitted from the rig file's 3.0 m and from 3.15 m put in on purpose.
-    known = report["known_answer"]
-    assert known["right_file"]["rope_length"] == 3.0 and known["wrong_file"]["rope_length"] == pytest.approx(3.15)
+    known, length = report["known_answer"], "ropes.rope.length"
+    assert known["parameters"] == [length]
+    assert known["right_file"]["lengths"][length] == 3.0
+    assert known["wrong_file"]["lengths"][length] == pytest.approx(3.15)
     assert known["flights"] == ["rosbag_15", "rosbag_19"]
-    assert known["identified"] == known["wrong_file"]["identifiable"]["ropes.rope.length"]
-    assert known["recovered"] == (known["identified"] and known["difference"] <= known["wrong_file"]["uncertainty"])
+    one = known["lengths"][length]
+    assert one["identified"] == known["wrong_file"]["identifiable"][length]
+    assert one["recovered"] == (one["identified"] and one["difference"] <= known["wrong_file"]["uncertainties"][length])
+    assert known["recovered"] == one["recovered"]
     assert all(isinstance(known[f]["converged"], bool) for f in ("right_file", "wrong_file"))
     # With the drone's track prescribed the load's mass is seen only against the rope's forces (its weight and
     # material are free in the file: tests/test_tolerances.py): never fitted, always reported not identifiable.
@@ -269,7 +278,8 @@ def test_a_short_hole_in_a_points_track_is_bridged_and_a_bodys_is_not(tmp_path):
     assert poses.report["point_gaps_bridged"] == 1
 
 
-@pytest.mark.parametrize("name", ["2025_07_30_14_36_05_hold.csv", "2025_07_30_20_44_05_hold.csv"])
+@pytest.mark.parametrize("name", ["2025_07_30_14_36_05_hold.csv", "2025_07_30_20_44_05_hold.csv",
+                                  "2025_07_30_22_14_22_hold.csv"])
 def test_the_three_drone_excerpts_hold_the_columns_their_sources_name(name):
     """The columns tests/data/hmer101/SOURCES.md says were kept, checked against the rig they recorded: three
     drones about 120 degrees apart about the box on a circle of about 1 m, each a 2.421 m cable plus its attachments
@@ -291,9 +301,9 @@ def test_the_three_drone_excerpts_hold_the_columns_their_sources_name(name):
     for a, b in ((0, 1), (1, 2), (2, 0)):
         gap = np.mod(bearings[b] - bearings[a], 2 * np.pi)
         assert np.all(np.abs(gap - 2 * np.pi / 3) < 0.5)  # within 30 degrees: the formation still settling after the yaw stage
-    # attitude in radians, the yaw swinging about the vertical by tenths of a radian
+    # attitude in radians, the yaw swinging about the vertical by tenths of a radian to a radian
     yaw = frame["box.yaw"].to_numpy()
-    assert 0.3 < yaw.max() - yaw.min() < 1.0 and np.all(np.abs(frame[["box.roll", "box.pitch"]].to_numpy()) < 0.3)
+    assert 0.3 < yaw.max() - yaw.min() < 1.2 and np.all(np.abs(frame[["box.roll", "box.pitch"]].to_numpy()) < 0.3)
 
 
 def test_a_three_drone_excerpt_reads_through_its_mapping_with_the_boxs_angles():
@@ -315,7 +325,8 @@ def test_a_three_drone_excerpt_reads_through_its_mapping_with_the_boxs_angles():
         assert np.all(poses.positions["box"][:, 2] - drone[:, 2] > 2.2)
 
 
-@pytest.mark.parametrize("name", ["2025_07_30_14_36_05_hold.csv", "2025_07_30_20_44_05_hold.csv"])
+@pytest.mark.parametrize("name", ["2025_07_30_14_36_05_hold.csv", "2025_07_30_20_44_05_hold.csv",
+                                  "2025_07_30_22_14_22_hold.csv"])
 def test_read_as_roll_pitch_yaw_the_three_drone_boxs_cables_keep_their_lengths(name, tmp_path):
     """Taut cables keep their length: from each drone to a lid point 0.1 m out towards it (the authors'
     simulated attachment), the distance holds to 3 mm while the box yaws by 0.6 rad - if the angles are read
@@ -354,7 +365,7 @@ def test_the_force_across_the_rope_finds_the_air_drag_a_simulated_load_swings_ag
     """The slung load flown point to point for 40 s (an elastic line, a box on its eye: not the point mass on a
     rigid rope the estimate assumes) with air drag on the box alone, filmed at 30 Hz: the drag's k = rho cd A /
     (2 m) (A the box's mean face area) comes back within 10 %, and with none, below 2 % of the flights' 0.04."""
-    from dragline.benchmarks._real import force_across_rope
+    from dragline.benchmarks._force_across import force_across_rope
     from dragline.simulate import Maneuver, parse_physics
 
     rig = load_rig("slung_load")
