@@ -51,10 +51,11 @@ def read_log(path):
     """A log's rows (n, 95) and the index of the first row after its yaw stage's line (0 without one).
 
     Lines that are not 95 numbers (the mission's stage lines, blank lines)
-    are skipped; a row cut short (a log ended mid-write) too.
+    are skipped; a row cut short (a log ended mid-write) too, and bytes
+    that are not text read as a line that is not.
     """
     rows, yaw_stage_at = [], 0
-    with open(path) as src:
+    with open(path, errors="replace") as src:
         for line in src:
             parts = line.split()
             if parts and parts[0] == "MISSION_STAGE" and YAW_STAGE in parts:
