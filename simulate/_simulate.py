@@ -14,7 +14,7 @@ from ._maneuver import default_maneuver
 from ._model import assemble
 from ._release import POSE_COORDINATES, let_go
 from ._rig import load_rig
-from ._statics import StaticsError, solve_statics
+from ._statics import _POSE, StaticsError, solve_statics
 from ._time_step import start_time_step
 from ._tracked import MAX_STEPS, NO_REFINEMENT, NO_SCHEDULE, RK4, VERLET, integrate_tracked
 from ._table import trajectory_columns
@@ -320,7 +320,7 @@ def _settled_from_rest(model, rig, t0, rest, release):
     differences failed with it; this one starts each Newton next to its
     answer. Either ends at the balance to the statics' tolerance.
     """
-    y, done, step, eq = np.array(rest, float), 0.0, HOLD_STEP, None
+    y, done, step = np.array(rest, float), 0.0, HOLD_STEP
     while done < 1.0:
         fraction = min(1.0, done + step)
         part = {name: dict(pose, position=fraction * np.asarray(pose["position"], float),
@@ -344,7 +344,7 @@ def _placed(model, state, held):
     for name, (position, angles, settled) in held.items():
         b = model.body_names.index(name)
         pose = np.r_[position, angles]
-        for k, at in enumerate((0, 1, 2, 6, 7, 8)):
+        for k, at in enumerate(_POSE):
             if k not in settled:
                 state[12 * b + at] = pose[k]
     return state
