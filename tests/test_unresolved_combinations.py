@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -63,3 +65,47 @@ def test_differences_either_way_agree_on_a_smooth_response_and_not_on_scatter():
         assert one_sided_disagreement(f + rho * s1, f + rho * s2) == pytest.approx(expected, rel=0.05)
     assert one_sided_disagreement(f + 0.2 * s1, f + 0.2 * s2) < ROUGH < one_sided_disagreement(f + s1, f + s2)
     assert one_sided_disagreement(np.zeros(3), np.zeros(3)) == 0.0
+
+
+def test_a_shared_length_is_said_with_each_trials_cable_end_it_trades_with_and_never_with_a_start():
+    # two flights of the three-drone box: lengthening the first cable by d and raising its end under the drone by
+    # d on both flights moves nothing (the rows of each flight see the length and that flight's end alike); each
+    # flight's start and the box's mass centre are seen on their own
+    import dataclasses
+
+    from dragline.compare.diagnose._trials import each_trials_own
+    from dragline.compare.diagnose._unresolved import combination_columns
+    from dragline.simulate import load_rig
+
+    box = load_rig(Path(__file__).resolve().parents[1] / "benchmarks" / "real" / "hmer101.toml")
+    wanted = ("ropes.c1.length", "bodies.box.cg_x", "tracks.drone1.z")
+    chosen = [p for p in box.tolerances if p.name in wanted]
+    params = list(each_trials_own(chosen, ["A", "B"]))
+    length = next(p for p in params if p.name == "ropes.c1.length")
+    params.append(dataclasses.replace(length, name="start.A.box.x", kind="start", trial="A"))
+    names = [p.name for p in params]
+    columns = combination_columns(params)
+    assert [names[k] for k in columns] == [n for n in names if not n.startswith("start.")]
+
+    rng = np.random.default_rng(5)
+    rows = 300
+    f_a, f_b, g, s = rng.normal(size=(4, rows))
+    X = np.zeros((2 * rows, len(params) + 1))  # the last column a nuisance offset
+    col = {n: k for k, n in enumerate(names)}
+    X[:rows, col["ropes.c1.length"]], X[rows:, col["ropes.c1.length"]] = 40 * f_a, 40 * f_b
+    X[:rows, col["tracks.A.drone1.z"]], X[rows:, col["tracks.B.drone1.z"]] = 40 * f_a, 40 * f_b
+    X[:, col["bodies.box.cg_x"]] = 40 * np.r_[g, g[::-1]]
+    X[:rows, col["start.A.box.x"]] = 40 * s
+    X[:, -1] = 1.0
+    tol = np.array([p.tolerance for p in params])
+    prior_var = np.r_[tol**2, 1.0]
+    (combo,) = unresolved_combinations(X, prior_var, columns, tol[columns], [names[k] for k in columns])
+    loading = combo["parameters"]
+    assert set(loading) == {"ropes.c1.length", "tracks.A.drone1.z", "tracks.B.drone1.z"}
+    # the length up by d, both ends by -d: the direction that moves nothing, in metres
+    assert loading["tracks.A.drone1.z"] == pytest.approx(-loading["ropes.c1.length"])
+    assert loading["tracks.B.drone1.z"] == pytest.approx(-loading["ropes.c1.length"])
+    assert combo["information"] == pytest.approx(0.0, abs=1e-6)
+    # asked among the shared parameters alone (the ends projected out with their prior) it is not said
+    shared = [k for k in columns if not params[k].of_a_trial]
+    assert unresolved_combinations(X, prior_var, shared, tol[shared], [names[k] for k in shared]) == []

@@ -9,10 +9,10 @@ scale. Which one the fit then moves is decided by the tolerances, not the
 data, and a lab is better told the combination and that measuring any one
 of its parameters decides the rest.
 
-Found from the data's own information about the shared parameters (the
-weighted design's normal matrix, every nuisance - offsets, clock shift,
-the model error's amplitudes and each trial's own coordinates - projected
-out with its prior), in tolerance units: a direction along which it is
+Found from the data's own information about the shared parameters and
+each trial's track offsets (the weighted design's normal matrix, every
+nuisance - offsets, clock shift, the model error's amplitudes and each
+trial's start - projected out with its prior), in tolerance units: a direction along which it is
 below ``SEEN``, a one-tolerance prior that the recording would not halve
 (posterior over prior ``1 / sqrt(1 + information)`` above 0.5), is
 unresolved. Directions loaded on one parameter alone are that parameter's
@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SEEN", "unresolved_combinations"]
+__all__ = ["SEEN", "combination_columns", "unresolved_combinations"]
 
 # The data's information along a direction, in one-tolerance units, below which a one-tolerance prior is not
 # halved: 1 / sqrt(1 + 3) = 0.5, the identifiability rule's ratio.
@@ -33,8 +33,19 @@ SEEN = 3.0
 LOADING = 0.2
 
 
-def unresolved_combinations(X, prior_var, shared, tolerances, names):
-    """The combinations of shared parameters the recording does not pin.
+def combination_columns(parameters):
+    """Which of ``parameters`` (``RigParameter``) a combination is sought among, by index.
+
+    The rig's shared parameters and each trial's track offsets: where a
+    rope hangs under a tracked origin is geometry a lab can measure, so a
+    shared length it trades with is said together with it. A trial's start
+    is not: it is the recording's, not the rig's.
+    """
+    return [k for k, p in enumerate(parameters) if not p.of_a_trial or p.kind == "track"]
+
+
+def unresolved_combinations(X, prior_var, columns, tolerances, names):
+    """The combinations of the rig's parameters the recording does not pin.
 
     Parameters
     ----------
@@ -43,9 +54,10 @@ def unresolved_combinations(X, prior_var, shared, tolerances, names):
         parameters', then the nuisance's), in noise units.
     prior_var : ndarray (p,)
         Each column's prior variance.
-    shared : sequence of int
-        The columns of the shared rig parameters (the rest is nuisance).
-    tolerances : ndarray (len(shared),)
+    columns : sequence of int
+        The columns asked about: the shared rig parameters and each
+        trial's track offsets (the rest is nuisance).
+    tolerances : ndarray (len(columns),)
         Their tolerances (one prior standard deviation, coordinate units).
     names : sequence of str
         Their names.
@@ -58,13 +70,13 @@ def unresolved_combinations(X, prior_var, shared, tolerances, names):
         ln p or metres, the largest 1 in size) and ``information`` (the
         data's, in tolerance units), least seen first.
     """
-    shared = np.asarray(shared, int)
-    if shared.size < 2:
+    asked = np.asarray(columns, int)
+    if asked.size < 2:
         return []
-    rest = np.setdiff1d(np.arange(X.shape[1]), shared)
-    A = X[:, shared].T @ X[:, shared]
+    rest = np.setdiff1d(np.arange(X.shape[1]), asked)
+    A = X[:, asked].T @ X[:, asked]
     if rest.size:
-        B = X[:, shared].T @ X[:, rest]
+        B = X[:, asked].T @ X[:, rest]
         C = X[:, rest].T @ X[:, rest] + np.diag(1.0 / np.asarray(prior_var, float)[rest])
         A = A - B @ np.linalg.solve(C, B.T)
     tol = np.asarray(tolerances, float)

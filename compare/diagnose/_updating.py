@@ -88,7 +88,7 @@ from ._mass_scale import PROBE, gauge_covariance, is_pure_rescaling, scale_block
 from ._hypotheses import _init, _pool, bounded_solve, channels_on
 from ._scale import REFERENCE
 from ._trials import apply_to_trials, joined_states, stack_trials, trial_contexts
-from ._unresolved import unresolved_combinations
+from ._unresolved import combination_columns, unresolved_combinations
 
 __all__ = ["OFFSET_PRIOR", "BOUND_TOLERANCES", "ErrorDirections", "update_model", "robust_covariance", "joint_refit",
            "rig_alone_channels", "resume_update",
@@ -521,9 +521,9 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
         block["between_trials"] = _spread_block(params, coords, active, spread)
     block["unobservable_scale"] = None if scale is None else scale_block(params, scale["direction"], scale["held"],
                                                                           scale["response_ratio"])
-    own = np.flatnonzero(shared)
+    geometry = np.asarray(combination_columns([params[i] for i in active]), int)
     block["unresolved_combinations"] = unresolved_combinations(
-        X, prior_var, own, tol[active][own], [params[active[j]].name for j in own])
+        X, prior_var, geometry, tol[active][geometry], [params[active[j]].name for j in geometry])
     return {"coords": coords, "sim": sim, "initial_state": state, "schedules": schedules, "rig": rig,
             "maneuver": maneuver,
             "sensitivities": sens, "covariance": cov, "offsets": offsets, "shift": float(nuis[-1]), "block": block,
