@@ -378,3 +378,28 @@ def test_the_joint_refit_fits_the_mechanism_with_the_parameters_not_after_them(f
                                  statics_guess=joint["initial_state"]), ctx)
     assert np.abs(alone - plain).max() < 1e-6
     assert np.abs(alone - joint["sim"]).max() > 1e3 * np.abs(alone - plain).max()
+
+
+def test_a_parameter_the_trials_disagree_on_is_said_with_each_trials_value_only_where_chance_would_not_do_it():
+    # three trials' own estimates as the three-drone flights gave them (2026-12-03); the 95 % point of chi2 on 2
+    # degrees of freedom is -2 ln 0.05 = 5.99: Q 49.6 is beyond it, 4.4 is not
+    def entry(name, identifiable):
+        return {"parameter": name, "nominal": 1.0, "estimate": 1.0, "uncertainty": 0.1, "unit": "m",
+                "shift_in_tolerances": 0.0, "identifiable": identifiable}
+
+    def spread(values, q):
+        return {"trial_estimates": values, "trial_uncertainties": [0.1] * 3, "between_trials_sd": 0.5,
+                "cochran_q": q, "degrees_of_freedom": 2}
+
+    cal = {"parameters": [entry("ropes.c1.length", False), entry("bodies.box.cg_x", False),
+                          entry("bodies.box.inertia_z", True)],
+           "between_trials": {"trials": ["a", "b", "c"],
+                              "parameters": {"ropes.c1.length": spread([1.412, 2.965, 2.586], 49.6),
+                                             "bodies.box.cg_x": spread([0.061, 0.022, 0.020], 5.9),
+                                             "bodies.box.inertia_z": spread([0.045, 0.068, 0.017], 122.7)}}}
+    said = [line for line in _calibration_lines({"calibration": cal}) if "the trials disagree" in line]
+    assert len(said) == 1
+    assert "ropes.c1.length" in said[0] and "1.412, 2.965, 2.586 m" in said[0] and "49.6 on 2" in said[0]
+    cal["between_trials"]["parameters"]["bodies.box.cg_x"]["cochran_q"] = 6.0
+    lines = _calibration_lines({"calibration": cal})
+    assert sum("the trials disagree on bodies.box.cg_x" in line for line in lines) == 1

@@ -210,6 +210,31 @@ def _worst_channel(ax, diag):
     ax.legend(loc="upper right", ncol=3, fontsize=7)
 
 
+def _disagreement_lines(cal):
+    """Why a shared parameter the trials each see is still not identifiable: they disagree on it.
+
+    The trials' own estimates differing beyond their spreads (Cochran's Q
+    above its 95 % point: chance alone would exceed it one time in twenty)
+    widen the shared estimate's spread by theirs; where the parameter is
+    then not identifiable, the lab is told the trials' values, since what
+    differs between them (the rig, or physics the model lacks) is the
+    finding, not the noise.
+    """
+    from scipy.stats import chi2
+
+    spread = (cal.get("between_trials") or {}).get("parameters", {})
+    lines = []
+    for e in cal.get("parameters", []):
+        s = spread.get(e["parameter"])
+        if e["identifiable"] or not s or s["cochran_q"] <= chi2.ppf(0.95, s["degrees_of_freedom"]):
+            continue
+        each = ", ".join(_f(v, ".4g") for v in s["trial_estimates"])
+        lines.append(f"  the trials disagree on {e['parameter']}: each alone {each} {e['unit']} (Cochran's Q "
+                     f"{s['cochran_q']:.3g} on {s['degrees_of_freedom']} degrees of freedom): its spread is "
+                     "widened by theirs - the rig or the physics differs between the trials, not the noise")
+    return lines
+
+
 def _calibration_lines(doc):
     cal = doc.get("calibration") or {}
     lines = ["", "Model updating within the rig's tolerances (shift in tolerances; identifiable = the recording "
@@ -225,6 +250,7 @@ def _calibration_lines(doc):
     for pair in cal.get("degenerate_pairs", []):
         lines.append(f"  moved only together: {pair['parameters'][0]} and {pair['parameters'][1]} "
                      f"(correlation {pair['correlation']:+.2f})")
+    lines += _disagreement_lines(cal)
     for combo in cal.get("unresolved_combinations", []):
         seen = ", ".join(f"{name} ({w:+.2f})" for name, w in combo["parameters"].items())
         lines.append(f"  seen only in a combination: {seen} - the recording does not fix them along it "
