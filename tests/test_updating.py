@@ -382,7 +382,7 @@ def test_the_joint_refit_fits_the_mechanism_with_the_parameters_not_after_them(f
 
 def test_a_parameter_the_trials_disagree_on_is_said_with_each_trials_value_only_where_chance_would_not_do_it():
     # three trials' own estimates as the three-drone flights gave them (2026-12-03); the 95 % point of chi2 on 2
-    # degrees of freedom is -2 ln 0.05 = 5.99: Q 49.6 is beyond it, 4.4 is not
+    # degrees of freedom is -2 ln 0.05 = 5.99: Q 49.6 and 6.0 are beyond it, 5.9 is not
     def entry(name, identifiable):
         return {"parameter": name, "nominal": 1.0, "estimate": 1.0, "uncertainty": 0.1, "unit": "m",
                 "shift_in_tolerances": 0.0, "identifiable": identifiable}

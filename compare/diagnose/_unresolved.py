@@ -12,10 +12,10 @@ of its parameters decides the rest.
 Found from the data's own information about the shared parameters and
 each trial's track offsets (the weighted design's normal matrix, every
 nuisance - offsets, clock shift, the model error's amplitudes and each
-trial's start - projected out with its prior), in tolerance units: a direction along which it is
-below ``SEEN``, a one-tolerance prior that the recording would not halve
-(posterior over prior ``1 / sqrt(1 + information)`` above 0.5), is
-unresolved. Directions loaded on one parameter alone are that parameter's
+trial's start - projected out with its prior), in tolerance units: a
+direction along which it is below ``SEEN``, a one-tolerance prior that
+the recording would not halve (posterior over prior ``1 / sqrt(1 +
+information)`` above 0.5), is unresolved. Directions loaded on one parameter alone are that parameter's
 "not identifiable" and are not repeated.
 """
 
