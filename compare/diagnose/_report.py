@@ -11,6 +11,7 @@ import math
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
+from scipy.stats import chi2
 
 import textwrap
 
@@ -220,8 +221,6 @@ def _disagreement_lines(cal):
     differs between them (the rig, or physics the model lacks) is the
     finding, not the noise.
     """
-    from scipy.stats import chi2
-
     spread = (cal.get("between_trials") or {}).get("parameters", {})
     lines = []
     for e in cal.get("parameters", []):
