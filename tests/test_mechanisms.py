@@ -223,6 +223,30 @@ def test_the_site_screen_ranks_on_what_no_parameter_change_explains():
     assert [c["name"] for c in lone[0]] == ["plain_law", "law@backwards"] and lone[1] == []
 
 
+def test_a_site_through_the_screen_brings_every_law_at_it():
+    # The screen finds where better than what (a Coulomb law's column at the bottom of its range is no guide
+    # to its size): a second law at the site that passed is fitted though its own score is a twentieth of the
+    # best; the same law at a site that did not pass stays out, and so does a law at the site that would have
+    # to act backwards.
+    from dragline.compare.diagnose._hypotheses import Problem
+    from dragline.compare.diagnose._sites import SCREEN_SHARE, screen_sites
+
+    t = np.linspace(0.0, 10.0, 2001)
+    wave = lambda f, p: np.column_stack([np.sin(2 * np.pi * f * t + p), np.cos(2 * np.pi * 0.7 * f * t + p)])
+    truth, other, third = wave(0.52, 0.4), wave(1.37, 2.0), wave(2.11, 0.9)
+    problem = Problem(t, np.zeros((t.size, 2)), np.ones(2), t_stop=t[-1])
+    residual = 0.02 * truth
+    signatures = {"coulomb@boom": 0.02 * truth, "viscous@boom": 0.02 * other + 0.001 * truth,
+                  "viscous@ring": 0.02 * third + 0.001 * truth, "inertia@boom": -0.001 * truth + 0.02 * third}
+    cands = [{"name": n, "range": (1.0, 2.0)} for n in signatures]
+    kept, report, out = screen_sites(problem, cands, signatures, residual, [])
+    score = {e["name"]: e["improvement"] for e in report}
+    assert 0.0 < score["viscous@boom"] < SCREEN_SHARE * score["coulomb@boom"]
+    assert 0.0 < score["viscous@ring"] < SCREEN_SHARE * score["coulomb@boom"] and score["inertia@boom"] == 0.0
+    assert [c["name"] for c in kept] == ["coulomb@boom", "viscous@boom"]
+    assert {e["name"] for e in report if e["fitted"]} == {"coulomb@boom", "viscous@boom"} and len(out) == 2
+
+
 def test_a_lead_at_several_sites_and_the_laws_alike_to_it_are_split_into_their_sites():
     # The crane's miss (site seed 304): bearing friction at its three sheaves led the capstan everywhere, the
     # two signatures one shape; each is to be fitted at every sheave alone. A law of another shape (cosine 0.6
