@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...simulate import assemble, make_mechanism, mechanism_sites
+from ...simulate import assemble, make_mechanism, mechanism_sites, mechanism_type
 from ._hypotheses import REFINE_FRACTION, _grid_job, _pool, _weighted_signal
 from ._trials import first_maneuver
 
@@ -258,8 +258,10 @@ def screen_sites(problem, candidates, signatures, residual, sensitivities, share
 
 
 def _sites_of(name):
-    """The sites of a site candidate's name (``LAW@A+B``), as a set."""
-    return set(name.partition("@")[2].split("+"))
+    """The sites of a site candidate's name (``LAW@A+B``), as a set of (kind, site): a ring and a body may share
+    a name (the dragline's hoist cluster), a ring law and a body law never share a site."""
+    kind = mechanism_type(name).site
+    return {(kind, site) for site in name.partition("@")[2].split("+")}
 
 
 def _span(J, rcond=1e-10):
