@@ -216,7 +216,8 @@ def test_the_site_screen_ranks_on_what_no_parameter_change_explains():
     assert report[0]["name"] == "pulley_friction@truth" and report[0]["fitted"]
     # What the truth adds to the parameters' fit is its own part outside their span: here almost all of it.
     assert score["pulley_friction@truth"] == pytest.approx(np.sum((0.02 * truth) ** 2), rel=0.02)
-    assert score["pulley_friction@decoy"] < SCREEN_SHARE * score["pulley_friction@truth"] and score["pulley_friction@backwards"] == 0.0
+    assert score["pulley_friction@decoy"] < SCREEN_SHARE * score["pulley_friction@truth"]
+    assert score["pulley_friction@backwards"] == 0.0
     assert [c["name"] for c in kept] == ["pulley_friction", "pulley_friction@truth"]
     assert len(out) == 3  # the three not fitted still weigh in the null test
     lone = screen_sites(problem, cands[:1] + cands[3:4], signatures, residual, [J0, J1])
@@ -225,9 +226,9 @@ def test_the_site_screen_ranks_on_what_no_parameter_change_explains():
 
 def test_a_site_through_the_screen_brings_every_law_at_it():
     # The screen finds where better than what (a Coulomb law's column at the bottom of its range is no guide
-    # to its size): a second law at the site that passed is fitted though its own score is a twentieth of the
-    # best; the same law at a site that did not pass stays out, and so does a law at the site that would have
-    # to act backwards.
+    # to its size): a second law at the site that passed is fitted though its own score is under a thousandth
+    # of the best; the same law at a site that did not pass stays out, and so does a law at the site that
+    # would have to act backwards.
     from dragline.compare.diagnose._hypotheses import Problem
     from dragline.compare.diagnose._sites import SCREEN_SHARE, screen_sites
 
