@@ -15,8 +15,9 @@ nuisance - offsets, clock shift, the model error's amplitudes and each
 trial's start - projected out with its prior), in tolerance units: a
 direction along which it is below ``SEEN``, a one-tolerance prior that
 the recording would not halve (posterior over prior ``1 / sqrt(1 +
-information)`` above 0.5), is unresolved. Directions loaded on one parameter alone are that parameter's
-"not identifiable" and are not repeated.
+information)`` above 0.5), is unresolved. Directions loaded on one
+parameter alone are that parameter's "not identifiable" and are not
+repeated.
 """
 
 from __future__ import annotations
