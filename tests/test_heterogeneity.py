@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dragline.compare.diagnose._heterogeneity import dersimonian_laird, widened
+from dragline.compare.diagnose._heterogeneity import between_trials, dersimonian_laird, widened
 
 
 def test_estimates_that_scatter_as_their_variances_say_have_no_between_trial_variance():
@@ -42,3 +42,19 @@ def test_no_standard_deviation_is_stated_wider_than_the_prior():
     out = widened(cov, [0.0, 0.0], prior_sd=[1.5, 2.0])
     assert np.sqrt(np.diag(out)) == pytest.approx([1.5, 1.0])
     assert out[0, 1] / 1.5 == pytest.approx(0.2)
+
+
+def test_a_trials_own_estimate_stays_within_the_bounds_a_one_trial_fit_would_have():
+    # One parameter (prior sd 1, shared value 0), two trials of 50 rows, every row's column 1: a trial's
+    # one-step estimate is sum(z) / (50 + 1). Trial a's residual, 10 on every row, pulls it to 500/51 = 9.8
+    # tolerances, which the updating would never reach; held at 3. Trial b's, 1, gives 50/51, as unbounded.
+    n = 50
+    X = np.ones((n * 2, 1))
+    z = np.column_stack([np.full(n, 10.0), np.ones(n)])
+    args = (X, z, np.zeros(1), np.ones(1), ["a/x", "b/x"], 1, lambda Xi, zi, H_inv, prior: H_inv)
+    free = between_trials(*args)
+    assert free["estimates"][:, 0] == pytest.approx([500 / 51, 50 / 51])
+    held = between_trials(*args, bound=np.array([3.0]))
+    assert held["estimates"][:, 0] == pytest.approx([3.0, 50 / 51])
+    assert held["at_bound"][:, 0].tolist() == [True, False]
+    assert not free["at_bound"].any()

@@ -403,3 +403,8 @@ def test_a_parameter_the_trials_disagree_on_is_said_with_each_trials_value_only_
     cal["between_trials"]["parameters"]["bodies.box.cg_x"]["cochran_q"] = 6.0
     lines = _calibration_lines({"calibration": cal})
     assert sum("the trials disagree on bodies.box.cg_x" in line for line in lines) == 1
+    # an estimate held at the updating's bound is said to be (the unbounded step had put the first at 1.412)
+    cal["between_trials"]["parameters"]["ropes.c1.length"].update(trial_estimates=[2.121, 2.721, 2.586],
+                                                                  trial_at_bound=[True, True, False])
+    said = [line for line in _calibration_lines({"calibration": cal}) if "disagree on ropes.c1.length" in line]
+    assert "2.121 (at its bound), 2.721 (at its bound), 2.586 m" in said[0]

@@ -227,7 +227,8 @@ def _disagreement_lines(cal):
         s = spread.get(e["parameter"])
         if e["identifiable"] or not s or s["cochran_q"] <= chi2.ppf(0.95, s["degrees_of_freedom"]):
             continue
-        each = ", ".join(_f(v, ".4g") for v in s["trial_estimates"])
+        held = s.get("trial_at_bound") or [False] * len(s["trial_estimates"])
+        each = ", ".join(_f(v, ".4g") + (" (at its bound)" if b else "") for v, b in zip(s["trial_estimates"], held))
         lines.append(f"  the trials disagree on {e['parameter']}: each alone {each} {e['unit']} (Cochran's Q "
                      f"{s['cochran_q']:.3g} on {s['degrees_of_freedom']} degrees of freedom): its spread is "
                      "widened by theirs - the rig or the physics differs between the trials, not the noise")

@@ -500,7 +500,7 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
                  0.0) * np.sqrt(problem.W)
     robust = robust_covariance(X, z, H_inv, 1.0 / prior_var)
     spread = between_trials(X, z, np.r_[coords[active], nuis], 1.0 / prior_var, ctx["channels"], len(active),
-                            robust_covariance)
+                            robust_covariance, bound=BOUND_TOLERANCES * tol[active])
     p_act = len(active)
     # A trial's own coordinates (its start) are not shared: the trials' disagreement does not widen them.
     shared = np.array([not params[i].of_a_trial for i in active], bool)
@@ -1344,6 +1344,7 @@ def _spread_block(params, coords, active, spread):
         out["parameters"][p.name] = {
             # None: a trial alone that sets the parameter beyond what a float holds (ln p past 700)
             "trial_estimates": values,
+            "trial_at_bound": [bool(b) for b in spread["at_bound"][:, j]],
             "trial_uncertainties": [None if v is None else scale(v, float(sd))
                                     for v, sd in zip(values, spread["sd"][:, j])],
             "between_trials_sd": scale(p.value(float(coords[i])), float(spread["tau"][j])),
