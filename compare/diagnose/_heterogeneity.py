@@ -111,7 +111,7 @@ def between_trials(X, z, theta, prior_precision, channels, n_parameters, covaria
     X3 = X.reshape(n, c, -1)
     p = int(n_parameters)
     prior_precision = np.asarray(prior_precision, float)
-    limits = np.full((X.shape[1], 2), np.inf) * np.array([-1.0, 1.0])
+    limits = np.tile([-np.inf, np.inf], (X.shape[1], 1))
     if bound is not None:
         limits[:p] = np.asarray(bound, float)[:, None] * np.array([-1.0, 1.0]) - np.asarray(theta, float)[:p, None]
     estimates, sds, held = [], [], []
