@@ -98,7 +98,8 @@ def test_a_real_lead_is_consistent_and_an_equal_one_rarely():
 def test_a_lead_the_finer_discretization_reverses_is_no_lead():
     # The lead's residual misses less than the rival's at this level; at the next finer one the roles turn (a law
     # whose discretized form happens to fit better here). The truth lies about MODEL_ERROR_FACTOR times as far
-    # as the finer level: the lead's spread holds that shift, and a lead smaller than it is no lead.
+    # as the finer level: the test reads the lead between this level and there, and a lead the finer level
+    # reverses is no lead.
     rng = np.random.default_rng(5)
     z = _ar1(rng, 0.5, np.ones(TIME.size))
     delta = np.sqrt(2000.0 / float((_signature() ** 2).sum())) * _signature()
@@ -111,12 +112,39 @@ def test_a_lead_the_finer_discretization_reverses_is_no_lead():
     assert shift < -test["lead"]  # the finer level reverses the lead
     assert test["discretization_shift"] == pytest.approx(shift)
     assert test["sd_noise"] == pytest.approx(plain["sd"])
-    assert test["sd"] == pytest.approx(np.hypot(plain["sd"], MODEL_ERROR_FACTOR * shift))
+    assert test["converged_lead"] == pytest.approx(test["lead"] + MODEL_ERROR_FACTOR * shift / 2)
+    assert test["converged_lead"] < 0
+    assert test["sd"] == pytest.approx(np.hypot(plain["sd"], MODEL_ERROR_FACTOR * shift / 2))
     assert plain["consistent"] and not test["consistent"]
     # A shift known for one candidate only says nothing about the lead.
     alone = lead_tests(_problem(), {"lead": z, "rival": z + delta}, ["lead", "rival"],
                        finer_chi2={"lead": finer_chi2["lead"]})["lead"]["rival"]
     assert alone["discretization_shift"] is None and alone["sd"] == pytest.approx(plain["sd"])
+
+
+def test_a_lead_that_grows_at_the_finer_level_is_read_where_the_converged_model_puts_it():
+    # A lead whose discretization error falls as h^p: at the finer level it grows by a quarter of itself (as
+    # the right law's did in lead-test misses of the dragline's site benchmark). Its converged value,
+    # lead + shift 2^p / (2^p - 1), lies in the interval the test reads for every order p >= 1, and a lead
+    # read against a spread of the shift about this level alone (the rule before) is doubted for growing.
+    rng = np.random.default_rng(8)
+    z = _ar1(rng, 0.5, np.ones(TIME.size))
+    delta = np.sqrt(2000.0 / float((_signature() ** 2).sum())) * _signature()
+    lead = float(((z + delta) ** 2 - z**2).sum())
+    growth = 0.25 * lead
+    finer_chi2 = {"lead": (1000.0, 1000.0), "rival": (1000.0 + lead, 1000.0 + lead + growth)}
+    plain = lead_tests(_problem(), {"lead": z, "rival": z + delta}, ["lead", "rival"])["lead"]["rival"]
+    test = lead_tests(_problem(), {"lead": z, "rival": z + delta}, ["lead", "rival"],
+                      finer_chi2=finer_chi2)["lead"]["rival"]
+    assert test["discretization_shift"] == pytest.approx(growth)
+    half = MODEL_ERROR_FACTOR * growth / 2
+    for p in (1, 2, 4):
+        converged = lead + growth * 2**p / (2**p - 1)
+        assert test["converged_lead"] - half - 1e-9 <= converged <= test["converged_lead"] + half + 1e-9
+    assert test["consistent"] and test["t"] == pytest.approx(test["converged_lead"] / test["sd"])
+    assert test["sd"] == pytest.approx(np.hypot(plain["sd"], half))
+    symmetric = lead / np.hypot(plain["sd"], MODEL_ERROR_FACTOR * growth)
+    assert symmetric < test["critical"]
 
 
 def test_identical_residuals_lead_nowhere():

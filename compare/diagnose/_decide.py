@@ -136,8 +136,11 @@ def _no_lead(best, rival, noise):
         return f"a lead of {lead:.1f}, less than noise alone gives ({noise:.1f})"
     test = (best.get("leads") or {}).get(rival["name"])
     if test is not None and not test["consistent"]:
+        converged = test.get("converged_lead", test["lead"])
+        at = ("" if converged == test["lead"] else
+              f"its held-out lead {test['lead']:.3g} read as {converged:.3g}, nearer the converged model; ")
         return (f"a lead of {lead:.1f} that the residual's random part and the model's discretization could give "
-                f"(t = {test['t']:.2f} in its spread {test['sd']:.3g}, {test['critical']:.2f} needed)")
+                f"({at}t = {test['t']:.2f} in its spread {test['sd']:.3g}, {test['critical']:.2f} needed)")
     return None
 
 
