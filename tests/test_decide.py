@@ -147,6 +147,11 @@ def test_a_lead_counts_when_it_beats_noise_and_what_the_residuals_random_part_co
                              noise_threshold=2702.0)
     assert verdict == "unexplained" and "t = 0.79" in reason
     assert "random part and the model's discretization could give" in reason
+    assert "read as" not in reason  # no finer level: the lead is read as it is
+    # A lead the finer level cut: the reason says what the test read it as.
+    cut = dict(wide, converged_lead=321319.3, sd=540000.0, t=0.60, discretization_shift=-100000.0)
+    reason = decide([dict(best, leads={"aero_drag": cut}), rival], 889521.0, [], [], noise_threshold=2702.0)[1]
+    assert "its held-out lead 4.21e+05 read as 3.21e+05" in reason and "t = 0.60" in reason
     # A lead less than noise alone gives, however consistent: not told apart.
     verdict, reason = decide([dict(best, leads={"aero_drag": held}), rival], 889521.0, [], [],
                              noise_threshold=500000.0)
