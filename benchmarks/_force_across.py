@@ -69,7 +69,9 @@ def force_across_rope(time, anchor, load, gravity, cutoff_hz=ACROSS_CUTOFF_HZ, e
     def across(x):
         return x - np.einsum("ij,ij->i", x, u)[:, None] * u
 
-    near_hole = np.convolve(~tracked, np.ones(2 * int(np.ceil(edge_s / dt)) + 1), mode="same") > 0
+    # "full" and cut, not "same": a window longer than the record would lengthen the result.
+    half = int(np.ceil(edge_s / dt))
+    near_hole = np.convolve(~tracked, np.ones(2 * half + 1), mode="full")[half:half + time.size] > 0
     kept = (time >= time[0] + edge_s) & (time <= time[-1] - edge_s) & ~near_hole
     if kept.sum() * dt < ACROSS_KEPT_S:
         return None

@@ -204,7 +204,7 @@ def test_bench_real_leaves_each_flight_out_and_predicts_it(tmp_path):
     # The first 300 rows (10 s: the hover and the first moves) of each excerpt, to keep the suite's time.
     # The flights lie a folder deeper than --data, as a user's download might.
     _flights_folder(tmp_path / "downloads")
-    report = bench_real(tmp_path, rows=300, figure=tmp_path / "held_out.png")
+    report = bench_real(tmp_path, rows=200, figure=tmp_path / "held_out.png")
     assert (tmp_path / "held_out.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert list(report["datasets"]) == ["stormlord"]
     report = report["datasets"]["stormlord"]
@@ -383,6 +383,18 @@ def test_the_force_across_the_rope_finds_the_air_drag_a_simulated_load_swings_ag
     assert found["drag_per_length"] == pytest.approx(k, rel=0.10, abs=8e-4)
     if cd:
         assert found["share_drag"] > 0.9
+
+
+def test_a_record_shorter_than_the_filters_transients_has_no_force_across_the_rope():
+    """6.6 s at 30 Hz, a tracking hole among them: all of it lies within 5 s of an end, so nothing is left to fit
+    (not a window longer than the record)."""
+    from dragline.benchmarks._force_across import ACROSS_EDGE_S, force_across_rope
+
+    time = np.arange(200) / 30.0
+    assert time[-1] < 2 * ACROSS_EDGE_S
+    load = np.column_stack([0.3 * np.sin(1.8 * time), 0.1 * np.cos(1.8 * time), np.full_like(time, -3.0)])
+    load[100] = np.nan
+    assert force_across_rope(time, np.zeros_like(load), load, [0.0, 0.0, 9.81]) is None
 
 
 def test_the_two_real_flights_push_their_load_across_the_rope_with_one_air_drag():
