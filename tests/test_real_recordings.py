@@ -201,7 +201,7 @@ def test_a_flights_row_rate_is_its_camera_topic_count_over_the_bags_duration():
 def test_bench_real_leaves_each_flight_out_and_predicts_it(tmp_path):
     from dragline.benchmarks import bench_real
 
-    # The first 300 rows (10 s: the hover and the first moves) of each excerpt, to keep the suite's time.
+    # The first 200 rows (6.7 s: the hover and the first moves) of each excerpt, to keep the suite's time.
     # The flights lie a folder deeper than --data, as a user's download might.
     _flights_folder(tmp_path / "downloads")
     report = bench_real(tmp_path, rows=200, figure=tmp_path / "held_out.png")
@@ -240,7 +240,7 @@ def test_bench_real_leaves_each_flight_out_and_predicts_it(tmp_path):
         mass = split["parameters"]["bodies.load.mass"]
         assert not mass["identifiable"] and mass["estimate"] == pytest.approx(0.4623, rel=1e-12)
     assert not any(known[f]["identifiable"]["bodies.load.mass"] for f in ("right_file", "wrong_file"))
-    # 10 s, of which the filter's transients take 5 s at each end: too short for the force across the rope.
+    # 6.7 s, all within the filter's 5 s transients of an end: too short for the force across the rope.
     assert report["force_across_rope"] == {"rosbag_15": None, "rosbag_19": None}
 
 
