@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,13 @@ REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "tests" / "data"
 # The seed paper's numbers, transcribed by hand (tests/data/paper/SOURCES.md).
 PAPER_PARAMETERS = DATA / "paper" / "paper_parameters.toml"
+
+
+def strict_loads(text):
+    """``json.loads`` that refuses NaN and Infinity, as a browser's ``JSON.parse`` does."""
+    def refuse(name):
+        raise ValueError(f"non-standard JSON constant {name}")
+    return json.loads(text, parse_constant=refuse)
 
 
 @pytest.fixture(scope="session")

@@ -9,13 +9,14 @@ from dragline.pipelines import _run
 from dragline.pipelines.cli import main
 from dragline.simulate import trajectory_columns
 
+from conftest import strict_loads
+
 
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):
+    """The built-in run exactly as ``dragline run`` makes it (seed 0, the study, the diagnosis): the main job."""
     out = tmp_path_factory.mktemp("run") / "out"
-    config = {k: dict(v) for k, v in _run.DEFAULTS.items()}
-    config["run"]["diagnose"] = False  # tested on its own (tests/test_diagnose.py); keeps CI short
-    summary = _run.run_pipeline(None, out, seed=3, study=False, quiet=True, config=config)
+    summary = _run.run_pipeline(None, out, quiet=True)
     return out, summary
 
 
@@ -126,16 +127,9 @@ def test_config_file_sets_stage_options_and_rejects_unknown_keys(tmp_path, capsy
     assert len(err) == 1 and "unknown key 'smoother'" in err[0]
 
 
-def test_the_ci_run_names_its_hidden_mechanism():
-    """End to end: `dragline run` (built by .ci/run) finds the physics its lab truth hid."""
-    import os
-    from pathlib import Path
-
-    out = Path(__file__).resolve().parents[1] / "dragline-out" / "ci" / "dig_compare"
-    if not (out / "diagnosis.json").exists():
-        if os.environ.get("CI") == "true":
-            pytest.fail(f"{out}/diagnosis.json missing: .ci/run must build it before the tests")
-        pytest.skip(".ci/run builds dragline-out/ci/dig_compare")
+def test_the_builtin_run_names_its_hidden_mechanism(demo):
+    """End to end: ``dragline run`` finds the physics its lab truth hid."""
+    out, _ = demo
     doc = json.loads((out / "diagnosis.json").read_text())
     hidden = json.loads((out / "truth" / "physics.json").read_text())["physics"][0]
     assert doc["verdict"] == hidden["name"]
@@ -143,3 +137,11 @@ def test_the_ci_run_names_its_hidden_mechanism():
     main_param = next(iter(hidden["parameters"]))
     assert best["parameters"][main_param] == pytest.approx(hidden["parameters"][main_param], rel=0.25)
     assert best["rms_after"] < 0.5 * best["rms_before"]
+
+
+def test_every_json_the_builtin_run_wrote_is_strict(demo):
+    out, _ = demo
+    files = sorted(out.rglob("*.json"))
+    assert {"diagnosis.json", "metrics.json", "cameras.json", "physics.json"} <= {f.name for f in files}
+    for f in files:
+        strict_loads(f.read_text())

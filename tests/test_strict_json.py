@@ -7,7 +7,6 @@ browser's ``JSON.parse`` refuses both. Before the shared writer, ``inspect
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
@@ -17,14 +16,7 @@ import pytest
 from dragline.capture._strict_json import json_ready, json_text, write_json
 from dragline.pipelines.cli import main
 
-CI_OUT = Path(__file__).resolve().parents[1] / "dragline-out" / "ci" / "dig_compare"
-
-
-def strict_loads(text):
-    """``json.loads`` that refuses NaN and Infinity, as JSON.parse does."""
-    def refuse(name):
-        raise ValueError(f"non-standard JSON constant {name}")
-    return json.loads(text, parse_constant=refuse)
+from conftest import strict_loads
 
 
 def test_non_finite_numbers_are_written_as_null_and_the_input_is_kept():
@@ -63,15 +55,3 @@ def test_a_table_with_a_non_finite_time_or_cell_is_refused(tmp_path, capsys, row
     assert main(["inspect", "--json", str(table)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(table) in err[0] and words in err[0], err
-
-
-def test_every_json_the_ci_run_wrote_is_strict():
-    files = sorted(CI_OUT.rglob("*.json")) if CI_OUT.exists() else []
-    if not files:
-        if os.environ.get("CI") == "true":
-            pytest.fail(f"{CI_OUT}: .ci/run must build the run before the tests")
-        pytest.skip(".ci/run builds dragline-out/ci/dig_compare")
-    names = {f.name for f in files}
-    assert {"diagnosis.json", "metrics.json", "cameras.json", "physics.json"} <= names
-    for f in files:
-        strict_loads(f.read_text())
