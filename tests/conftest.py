@@ -3,16 +3,31 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from dragline.compare._paper import FIGURES
+
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "tests" / "data"
 # The seed paper's numbers, transcribed by hand (tests/data/paper/SOURCES.md).
 PAPER_PARAMETERS = DATA / "paper" / "paper_parameters.toml"
+
+
+# The report's pages: at a glance, summary + all channels, Figs. 8-20 two per page, free-decay text and plots
+# (the study's Fig. 21 one more).
+REPORT_PAGES_WITHOUT_STUDY = 1 + 2 + math.ceil(len(FIGURES) / 2) + 2
+
+
+def pages_text(path):
+    """Each page's text of a PDF (pypdf)."""
+    import pypdf
+
+    return [page.extract_text() for page in pypdf.PdfReader(str(path)).pages]
 
 
 def strict_loads(text):

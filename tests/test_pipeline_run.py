@@ -1,15 +1,16 @@
 """``dragline run``/``replay``: the whole pipeline, its outputs and its failures."""
 
 import json
+import math
 
 import pandas as pd
 import pytest
 
 from dragline.pipelines import _run
 from dragline.pipelines.cli import main
-from dragline.simulate import trajectory_columns
+from dragline.simulate import dig_maneuver, trajectory_columns
 
-from conftest import strict_loads
+from conftest import REPORT_PAGES_WITHOUT_STUDY, pages_text, strict_loads
 
 
 @pytest.fixture(scope="module")
@@ -145,3 +146,24 @@ def test_every_json_the_builtin_run_wrote_is_strict(demo):
     assert {"diagnosis.json", "metrics.json", "cameras.json", "physics.json"} <= {f.name for f in files}
     for f in files:
         strict_loads(f.read_text())
+
+
+def test_the_builtin_runs_report_reads_back(demo):
+    """The report of the built-in dig: its summary prints the metrics' figures, and the study closes it."""
+    out, _ = demo
+    metrics = json.loads((out / "metrics.json").read_text())
+    text = pages_text(out / "report.pdf")
+    assert len(text) == REPORT_PAGES_WITHOUT_STUDY + 1  # with the discretization study
+    summary = text[1]
+    assert "measured vs predicted" in summary
+    off = metrics["time_offset"]
+    assert f"Offset applied: {round(off['applied'], 4) + 0.0:+.4f} s" in summary
+    for row in metrics["peaks"]:
+        for side in ("measured", "simulated"):
+            assert f"{row[side]['value']:+.3f} @ {row[side]['time']:.2f} s" in summary, (row["channel"], side)
+    pitch = metrics["channels"]["bucket.pitch"]
+    assert f"{math.degrees(pitch['rms_error']):.3g} deg" in summary
+    assert "-2.400 @ 6.77 s" in summary
+    assert metrics["reels_stop"]["time"] == pytest.approx(dig_maneuver().end_time, abs=0.005)  # a 200 Hz sample
+    assert "Fig. 21." in text[-1]
+    assert all(level in text[-1] for level in ("low", "baseline", "medium", "high"))

@@ -2,35 +2,22 @@
 
 The PDF is read back with pypdf (text of each page). Tables are built here
 from closed-form signals, so the numbers the report must print are known.
-The last test reads back the report that ``.ci/run`` builds for the
-built-in dig maneuver.
+The built-in run's own report is read back in ``test_pipeline_run.py``.
 """
 
-import json
-import os
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from dragline.compare import compare_tables, write_report
 from dragline.compare._paper import FIG21_CAPTION, FIGURES
-from dragline.simulate import dig_maneuver
-from conftest import synthetic_table
+
+from conftest import REPORT_PAGES_WITHOUT_STUDY, pages_text, synthetic_table
 
 pypdf = pytest.importorskip("pypdf")
 
-REPO = Path(__file__).resolve().parents[1]
-CI_DIR = REPO / "dragline-out" / "ci" / "dig_compare"
 T = np.round(np.arange(0.0, 10.0 + 1e-9, 0.02), 10)
-# At a glance, summary + all channels, Figs. 8-20 two per page, free-decay text and plots, Fig. 21.
-PAGES_WITHOUT_STUDY = 1 + 2 + math.ceil(len(FIGURES) / 2) + 2
-
-
-
-def pages_text(path):
-    return [page.extract_text() for page in pypdf.PdfReader(str(path)).pages]
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +58,7 @@ def test_identical_inputs_give_a_byte_identical_pdf(case, report, tmp_path):
 
 def test_page_count_and_figure_captions(report):
     text = pages_text(report)
-    assert len(text) == PAGES_WITHOUT_STUDY + 1
+    assert len(text) == REPORT_PAGES_WITHOUT_STUDY + 1
     everything = "\n".join(text)
     for label, _, caption, _ in FIGURES:
         assert f"Fig. {label}." in everything, label
@@ -169,30 +156,5 @@ def test_report_without_study_has_no_fig21(case, tmp_path):
     path = tmp_path / "plain.pdf"
     write_report(path, measured, simulated, metrics)
     text = pages_text(path)
-    assert len(text) == PAGES_WITHOUT_STUDY
+    assert len(text) == REPORT_PAGES_WITHOUT_STUDY
     assert not any("Fig. 21." in t for t in text)
-
-
-def test_ci_dig_maneuver_report_reads_back():
-    """The report .ci/run builds for the built-in dig maneuver (see the compare docs)."""
-    pdf, metrics_path = CI_DIR / "report.pdf", CI_DIR / "metrics.json"
-    if not pdf.exists() or not metrics_path.exists():
-        if os.environ.get("CI") == "true":
-            pytest.fail(f"{pdf} missing: .ci/run must build it before the tests")
-        pytest.skip(f"{pdf} not built; .ci/run builds it")
-    metrics = json.loads(metrics_path.read_text())
-    text = pages_text(pdf)
-    assert len(text) == PAGES_WITHOUT_STUDY + 1  # built with --discretization-study
-    summary = text[1]
-    assert "measured vs predicted" in summary
-    off = metrics["time_offset"]
-    assert f"Offset applied: {round(off['applied'], 4) + 0.0:+.4f} s" in summary
-    for row in metrics["peaks"]:
-        for side in ("measured", "simulated"):
-            assert f"{row[side]['value']:+.3f} @ {row[side]['time']:.2f} s" in summary, (row["channel"], side)
-    pitch = metrics["channels"]["bucket.pitch"]
-    assert f"{math.degrees(pitch['rms_error']):.3g} deg" in summary
-    assert "-2.400 @ 6.77 s" in summary
-    assert metrics["reels_stop"]["time"] == pytest.approx(dig_maneuver().end_time, abs=0.005)  # a 200 Hz sample
-    assert "Fig. 21." in text[-1]
-    assert all(level in text[-1] for level in ("low", "baseline", "medium", "high"))
