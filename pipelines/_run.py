@@ -140,7 +140,7 @@ def run_pipeline(source, out_dir, seed=0, maneuver=None, study=True, quiet=False
     parent = out.resolve().parent
     try:
         # An output directory is made like `mkdir -p`: scripts name nested
-        # result folders (CI and benchmarks write nested ones) on a fresh clone.
+        # result folders (dragline-out/dig/seed3) on a fresh clone.
         parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ValueError(f"cannot create output folder {parent}: {exc.strerror}") from None
