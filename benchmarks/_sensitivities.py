@@ -7,7 +7,7 @@ drift falls on both alike:
 
 - finite differences as the updating takes them today, one simulation per
   parameter, a hundredth of its tolerance away, started from the base run's
-  equilibrium (``_updating``'s ``FD_FRACTION`` and statics guess);
+  equilibrium (``_differences``' ``FD_FRACTION`` and statics guess);
 - ``simulate_sensitivities``: the base run, the assembly differenced, the
   statics and the trajectory differentiated, all parameters in one pass.
 

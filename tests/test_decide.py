@@ -247,7 +247,7 @@ def test_a_candidate_shaped_like_a_parameter_change_is_unexplained_only_if_the_t
     # Air drag on a pendulum's bob is shaped like a change of its mass (drag decelerates as cd / m):
     # cosine 0.96. A mass weighed to 0.5 % would need 158 tolerances to make it: no alternative.
     from dragline.compare.diagnose._decide import CONFOUNDED
-    from dragline.compare.diagnose._updating import BOUND_TOLERANCES
+    from dragline.compare.diagnose._objective import BOUND_TOLERANCES
 
     def best(needed):
         h = _hypothesis("aero_drag", 1e4, 1.4, 1.02)

@@ -11,7 +11,7 @@ from scipy import stats
 
 from dragline.compare.diagnose._hypotheses import Problem
 from dragline.compare.diagnose._lead import lead_tests
-from dragline.compare.diagnose._updating import MODEL_ERROR_FACTOR
+from dragline.compare.diagnose._model_error import MODEL_ERROR_FACTOR
 
 DT = 0.005
 TIME = np.arange(0.0, 20.0, DT)

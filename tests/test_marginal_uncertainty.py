@@ -1,4 +1,4 @@
-"""A mechanism's stated uncertainty with the rig's parameters free (``_updating.marginal_uncertainty``).
+"""A mechanism's stated uncertainty with the rig's parameters free (``_confounding.marginal_uncertainty``).
 
 The truth is linear least squares: with a residual of white noise at the
 stated level, a signature whose correlation with a parameter's sensitivity
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from dragline.compare.diagnose._hypotheses import Problem
-from dragline.compare.diagnose._updating import marginal_uncertainty
+from dragline.compare.diagnose._confounding import marginal_uncertainty
 from dragline.simulate import load_rig
 
 

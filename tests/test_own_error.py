@@ -41,7 +41,7 @@ def test_bounded_normal_equations_hold_the_worst_coefficient_at_its_bound_and_re
 
 
 def test_the_richardson_bound_is_the_first_order_factor_of_the_refinement():
-    from dragline.compare.diagnose._updating import richardson_bound
+    from dragline.compare.diagnose._model_error import richardson_bound
     from dragline.simulate import load_rig
 
     rig = load_rig("pendulum")  # wire: 2, 4, 8 particles

@@ -1,4 +1,4 @@
-"""The updating's stated uncertainty holds on a structured residual (``_updating.robust_covariance``).
+"""The updating's stated uncertainty holds on a structured residual (``_objective.robust_covariance``).
 
 A straight regression whose errors are correlated in time (AR(1), phi 0.8):
 the plain posterior understates the spread of the estimates about three
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dragline.compare.diagnose._updating import robust_covariance
+from dragline.compare.diagnose._objective import robust_covariance
 
 N = 3000
 DRAWS = 300

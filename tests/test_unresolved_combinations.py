@@ -48,7 +48,7 @@ def test_a_nuisance_that_takes_up_a_parameters_whole_effect_leaves_it_unseen_alo
 
 
 def test_differences_either_way_agree_on_a_smooth_response_and_not_on_scatter():
-    from dragline.compare.diagnose._updating import ROUGH, one_sided_disagreement
+    from dragline.compare.diagnose._differences import ROUGH, one_sided_disagreement
 
     rng = np.random.default_rng(7)
     b, c = rng.normal(size=(2, 500)) + np.array([[3.0], [0.0]])

@@ -15,16 +15,13 @@ import dataclasses
 import numpy as np
 import pytest
 
+from dragline.compare.diagnose._confounding import nuisance_correlation, parameter_span_share
+from dragline.compare.diagnose._differences import FD_FRACTION
 from dragline.compare.diagnose._hypotheses import MAX_SHIFT, Problem, channels_on
 from dragline.compare.diagnose._locate import DYNAMIC_CHANNELS
+from dragline.compare.diagnose._model_error import model_error
 from dragline.compare.diagnose._report import _calibration_lines
-from dragline.compare.diagnose._updating import (
-    FD_FRACTION,
-    model_error,
-    nuisance_correlation,
-    parameter_span_share,
-    update_model,
-)
+from dragline.compare.diagnose._updating import update_model
 from dragline.simulate import apply_parameters, dig_maneuver, parse_physics, simulate
 
 KEPT = ("winches.hoist.zero", "fixed_points.boom_pulley.z", "bodies.bucket.cg_x", "ropes.chain.viscous_damping")
@@ -270,7 +267,7 @@ def test_a_moved_boom_pulley_is_read_from_where_the_recording_measures_the_rope(
 def test_a_mismatch_the_finer_model_also_shows_is_marked_as_the_models_own_error():
     """Within MODEL_ERROR_FACTOR of the finer model's difference in its channel and window: the model's error."""
     from dragline.compare.diagnose._locate import locate_mismatch
-    from dragline.compare.diagnose._updating import MODEL_ERROR_FACTOR, mark_model_error
+    from dragline.compare.diagnose._model_error import MODEL_ERROR_FACTOR, mark_model_error
 
     time = np.arange(0.0, 4.0, 0.005)
     swing = np.sin(2 * np.pi * 0.8 * time)
@@ -312,7 +309,7 @@ def test_the_clock_shift_is_bounded_about_the_updated_models_own():
 
 
 def test_the_predicted_gain_is_the_residuals_part_in_the_jacobians_span():
-    from dragline.compare.diagnose._updating import predicted_gain
+    from dragline.compare.diagnose._objective import predicted_gain
 
     rng = np.random.default_rng(3)
     J = rng.normal(size=(50, 3))
@@ -333,13 +330,9 @@ def test_the_joint_refit_fits_the_mechanism_with_the_parameters_not_after_them(f
     # the value and the objective are the truth's. From cd 0.3 too (the rig took up two thirds of the drag):
     # the first fit is no bound on the value (a span of exp(0.4) about it stopped at 0.45).
     from dragline.compare.diagnose._hypotheses import _init
-    from dragline.compare.diagnose._updating import (
-        _objective_at,
-        _offset_prior,
-        _rig_job,
-        joint_refit,
-        rig_alone_channels,
-    )
+    from dragline.compare.diagnose._objective import _objective_at, _offset_prior
+    from dragline.compare.diagnose._rig_runs import _rig_job
+    from dragline.compare.diagnose._updating import joint_refit, rig_alone_channels
     from dragline.simulate import default_maneuver, load_rig, make_mechanism
 
     crane = load_rig("gantry_crane")

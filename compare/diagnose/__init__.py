@@ -4,9 +4,15 @@
 the work is in one module per concern (docs/diagnosis.md states the method):
 
 - ``_locate``: where and when the nominal model misses (channel x window);
-- ``_updating``: the model's own numerical error (``model_error``) and the
-  rig parameters updated within their tolerances (``update_model``,
-  ``joint_refit``);
+- ``_model_error``: the model's own numerical error (``model_error``);
+- ``_updating``: the rig parameters updated within their tolerances
+  (``update_model``, ``joint_refit``), on ``_objective`` (chi2 with the
+  nuisance projected out, the priors, the robust covariance),
+  ``_differences`` (the finite-difference sensitivities) and
+  ``_rig_runs`` (one run of the rig, a worker's job); its JSON block is
+  ``_calibration_block``'s;
+- ``_confounding``: how far a mechanism's signature looks like a change
+  of the rig's parameters, and its value's uncertainty with them free;
 - ``_hypotheses``: each candidate mechanism fitted through the simulator on
   top of the updated rig, scored on held-out data, the noise's null test;
 - ``_decide``: the verdict's rules;
@@ -21,7 +27,8 @@ the work is in one module per concern (docs/diagnosis.md states the method):
 - ``_leave_one_out``: each trial in turn left out and predicted;
 - ``_detection``: each candidate's detection threshold on a recording
   (what the rig cannot absorb against the model's own error);
-- ``_state`` and ``_steps``: the state object and the steps over it;
+- ``_state`` and ``_steps``: the state object and the steps over it (the
+  first, the recording on the model's clock, ``_align_recording``);
 - ``_diagnose``: the steps run in order, the document read off the state.
 """
 
@@ -42,7 +49,7 @@ from ._hypotheses import REFINE_XATOL, candidate_list
 from ._summary import ERROR_ALONG_SIGNATURE, SYSTEMATIC_FLOOR
 from ._leave_one_out import leave_one_out
 from ._sites import SCREEN_SHARE, SITES_ALIKE
-from ._updating import BOUND_TOLERANCES
+from ._objective import BOUND_TOLERANCES
 from ._scale import FREE_HZ, MachineScale, machine_scale
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",

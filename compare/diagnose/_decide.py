@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 from ._band import RESOLVED_HZ, RESOLVED_MIN, significance
 from ._sites import SITES_ALIKE
-from ._updating import BOUND_TOLERANCES
+from ._objective import BOUND_TOLERANCES
 
 __all__ = ["decide", "alike_laws", "DecisionRules", "verdict_of_document", "rethresholded", "leftover_share",
            "model_error_share", "EXPLAINED_MIN", "ADEQUATE_RMS", "LEFTOVER_SHARE",

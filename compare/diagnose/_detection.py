@@ -19,11 +19,13 @@ import math
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from ._align_recording import align_recording
+from ._confounding import _centred
 from ._hypotheses import simulate_channels
+from ._model_error import ERROR_AMPLITUDE_SD
 from ._recording import load_recording
 from ._state import DiagnosisState
-from ._steps import align_recording, locate_nominal, own_error_weight, update_rig
-from ._updating import ERROR_AMPLITUDE_SD, _centred
+from ._steps import locate_nominal, own_error_weight, update_rig
 
 __all__ = ["detection_thresholds", "threshold_crossing", "unabsorbed_chi2"]
 

@@ -1,7 +1,7 @@
 """Is the model wrong the same way on every trial? Between-trial spread of the rig's parameters.
 
 Several trials fitted together give one estimate of each shared parameter
-and a covariance that, even taken robustly (``_updating.robust_covariance``),
+and a covariance that, even taken robustly (``_objective.robust_covariance``),
 says how well the pooled residual pins it - not whether each trial, fitted
 on its own, would have said the same. Where the model describes the
 machine, the trials agree within their own uncertainties; where it lacks
@@ -75,7 +75,7 @@ def between_trials(X, z, theta, prior_precision, channels, n_parameters, covaria
     Parameters
     ----------
     X : ndarray (n * c, P)
-        The fit's weighted design (``_updating._design``): the parameters'
+        The fit's weighted design (``_objective._design``): the parameters'
         columns first (``n_parameters`` of them), then the nuisance's.
     z : ndarray (n, c)
         The weighted residual at the shared fit, the nuisance removed.
@@ -88,7 +88,7 @@ def between_trials(X, z, theta, prior_precision, channels, n_parameters, covaria
     n_parameters : int
     covariance_of : callable
         ``covariance_of(X_i, z_i, H_inv_i, prior_precision)``: a trial's
-        covariance (``_updating.robust_covariance``).
+        covariance (``_objective.robust_covariance``).
     bound : ndarray (n_parameters,), optional
         The most each parameter's coordinate may be either way (the
         updating's own bounds); the nuisance is not bounded.

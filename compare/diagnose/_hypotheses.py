@@ -56,7 +56,7 @@ residual's dispersion (``chi2_min / N``, at least 1) times its integrated
 autocorrelation time; reported with the two folds' estimates. The stated
 uncertainty (``_summary.stated_uncertainty``) is the largest of this
 profile, the fold spread, the search's resolution and the marginal with
-the rig's parameters free (``_updating.marginal_uncertainty``), with the
+the rig's parameters free (``_confounding.marginal_uncertainty``), with the
 model's own error along the signature in quadrature.
 """
 

@@ -60,7 +60,7 @@ from scipy import stats
 from scipy.ndimage import uniform_filter1d
 
 from ._hypotheses import BLOCK_S, NULL_QUANTILE, NULL_SURROGATES, _spectral_factor, _weighted_signal, surrogate
-from ._updating import MODEL_ERROR_FACTOR
+from ._model_error import MODEL_ERROR_FACTOR
 
 __all__ = ["lead_tests", "ENVELOPE_S"]
 

@@ -5,7 +5,7 @@ dragline: the floors below which a low-passed mismatch is not physics
 (``_locate.STRUCTURE_FLOOR``: the reconstruction's own systematic errors,
 a fraction of a millimetre in its lab), the lowest noise level believed
 (``NOISE_FLOOR``), the offsets marker placement and calibration may leave
-(``_updating.OFFSET_PRIOR``) and those that are a finding
+(``_objective.OFFSET_PRIOR``) and those that are a finding
 (``OFFSET_FINDING``, ``_steps.OFFSET_LIMIT``), and the low-pass that
 separates structure from noise (``LOWPASS_S``: it passes the dragline's
 swings, 0.6-2.5 Hz, about seven times its slowest).

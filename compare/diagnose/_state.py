@@ -167,3 +167,9 @@ class DiagnosisState:
     # predict_held_out
     predictions: list = field(default_factory=list)
     predicted_series: list = field(default_factory=list)
+
+
+def _note(state, message):
+    """``message`` to the state's progress callback, where it has one."""
+    if state.note is not None:
+        state.note(message)

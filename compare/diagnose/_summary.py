@@ -113,7 +113,7 @@ _WIDEST = 700.0
 def stated_uncertainty(scored, main, kappa, marginal=None, own_error=None):
     """The stated uncertainty of a fitted main parameter (see ``_hypotheses``).
 
-    ``marginal``: ``_updating.marginal_uncertainty``'s result, the ln
+    ``marginal``: ``_confounding.marginal_uncertainty``'s result, the ln
     value's standard deviation with the rig's parameters free; when given
     it is one of the candidates for the largest, and the interval says how
     much of it the parameters carry (``correlations``). ``own_error``: the
