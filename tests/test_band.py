@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from dragline.compare.diagnose._band import RESOLVED_HZ, band_improvement
-from dragline.compare.diagnose._hypotheses import Problem
+from dragline.compare.diagnose._problem import Problem
 
 RATE = 200.0
 N = 2000

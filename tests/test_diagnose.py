@@ -19,7 +19,8 @@ import numpy as np
 import pandas as pd
 import pytest
 from dragline.compare.diagnose._diagnose import diagnose, load_recording
-from dragline.compare.diagnose._hypotheses import MIN_IMPROVEMENT, Problem, null_threshold
+from dragline.compare.diagnose._null import MIN_IMPROVEMENT, null_threshold
+from dragline.compare.diagnose._problem import Problem
 from dragline.compare.diagnose._locate import (
     low_pass,
     noise_level,
@@ -451,7 +452,8 @@ def test_friction_at_one_sheave_is_named_at_that_sheave(nominal_run):
 def test_a_chain_and_its_twin_across_the_plane_are_one_site(nominal_run):
     # The dig is planar: link friction in the left drag chain moves the recording as in the right one (cosine
     # 1), unlike friction in a hoist chain; the sites' signatures say so before any fit.
-    from dragline.compare.diagnose._hypotheses import Problem, channels_on
+    from dragline.compare.diagnose._hypotheses import channels_on
+    from dragline.compare.diagnose._problem import Problem
     from dragline.compare.diagnose._sites import _shape, alike_groups
 
     t = nominal_run.table

@@ -175,7 +175,8 @@ def test_local_workers_and_their_parent_run_one_blas_thread_while_open(workers):
 def test_refining_searches_side_by_side_evaluate_what_one_per_worker_does(cluster, context):
     # Three searches on two workers: run as threads that hand single simulations to the pool, they
     # must evaluate exactly the points each search evaluates alone in one process.
-    from dragline.compare.diagnose._hypotheses import Problem, _refine_job, _refine_searches, simulate_channels
+    from dragline.compare.diagnose._hypotheses import _refine_job, _refine_searches, simulate_channels
+    from dragline.compare.diagnose._problem import Problem
 
     _init(context)
     truth = simulate_channels("aero_drag", "cd", 2.0, context)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from dragline.compare.diagnose._hypotheses import Problem
+from dragline.compare.diagnose._problem import Problem
 from dragline.compare.diagnose._lead import lead_tests
 from dragline.compare.diagnose._model_error import MODEL_ERROR_FACTOR
 

@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from dragline.compare.diagnose._hypotheses import Problem
+from dragline.compare.diagnose._problem import Problem
 from dragline.compare.diagnose._confounding import marginal_uncertainty
 from dragline.simulate import load_rig
 

@@ -196,7 +196,7 @@ def test_the_site_screen_ranks_on_what_no_parameter_change_explains():
     # updated rig alone; projected out of the parameters' span it is a wave at cosine 0.27 to the truth, and
     # explains 0.07 of what the truth does.
     # A site whose law would have to act backwards is not fitted, a lone site always is.
-    from dragline.compare.diagnose._hypotheses import Problem
+    from dragline.compare.diagnose._problem import Problem
     from dragline.compare.diagnose._sites import SCREEN_SHARE, screen_sites
 
     t = np.linspace(0.0, 10.0, 2001)
@@ -229,7 +229,7 @@ def test_a_site_through_the_screen_brings_every_law_at_it():
     # to its size): a second law at the site that passed is fitted though its own score is under a thousandth
     # of the best; the same law at a site that did not pass stays out, and so does a law at the site that
     # would have to act backwards.
-    from dragline.compare.diagnose._hypotheses import Problem
+    from dragline.compare.diagnose._problem import Problem
     from dragline.compare.diagnose._sites import SCREEN_SHARE, screen_sites
 
     t = np.linspace(0.0, 10.0, 2001)
@@ -256,7 +256,7 @@ def test_a_lead_at_several_sites_and_the_laws_alike_to_it_are_split_into_their_s
     # The crane's miss (site seed 304): bearing friction at its three sheaves led the capstan everywhere, the
     # two signatures one shape; each is to be fitted at every sheave alone. A law of another shape (cosine 0.6
     # to the lead), a law not asked where, a single site and a set beyond the cap are not split.
-    from dragline.compare.diagnose._hypotheses import Problem
+    from dragline.compare.diagnose._problem import Problem
     from dragline.compare.diagnose._sites import sets_to_split
     from dragline.simulate import load_rig
 

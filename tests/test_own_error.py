@@ -29,7 +29,7 @@ def test_a_pendulum_with_nothing_hidden_is_not_given_the_models_own_error_as_phy
 def test_bounded_normal_equations_hold_the_worst_coefficient_at_its_bound_and_refit_the_rest():
     import numpy as np
 
-    from dragline.compare.diagnose._hypotheses import bounded_solve
+    from dragline.compare.diagnose._problem import bounded_solve
 
     A = np.array([[2.0, 1.0], [1.0, 2.0]])
     g = np.array([4.0, 5.0])  # unconstrained: x = (1, 2)

@@ -16,7 +16,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from dragline.compare.diagnose._hypotheses import Problem
+from dragline.compare.diagnose._problem import Problem
 from dragline.simulate import rig_from_dict
 from test_trials import TRUE_LENGTH, _flight, _rig_text
 

@@ -17,9 +17,10 @@ import pytest
 
 from dragline.compare.diagnose._confounding import nuisance_correlation, parameter_span_share
 from dragline.compare.diagnose._differences import FD_FRACTION
-from dragline.compare.diagnose._hypotheses import MAX_SHIFT, Problem, channels_on
+from dragline.compare.diagnose._hypotheses import channels_on
 from dragline.compare.diagnose._locate import DYNAMIC_CHANNELS
 from dragline.compare.diagnose._model_error import model_error
+from dragline.compare.diagnose._problem import MAX_SHIFT, Problem
 from dragline.compare.diagnose._report import _calibration_lines
 from dragline.compare.diagnose._updating import update_model
 from dragline.simulate import apply_parameters, dig_maneuver, parse_physics, simulate

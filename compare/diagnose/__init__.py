@@ -14,7 +14,8 @@ the work is in one module per concern (docs/diagnosis.md states the method):
 - ``_confounding``: how far a mechanism's signature looks like a change
   of the rig's parameters, and its value's uncertainty with them free;
 - ``_hypotheses``: each candidate mechanism fitted through the simulator on
-  top of the updated rig, scored on held-out data, the noise's null test;
+  top of the updated rig and scored on held-out data (``_problem``: the
+  objective and its folds), against what noise alone gives (``_null``);
 - ``_decide``: the verdict's rules;
 - ``_second_round``: the other candidates on top of a named one;
 - ``_report``: the diagnosis pages of the PDF;

@@ -17,7 +17,7 @@ import numpy as np
 from ...simulate import simulate
 from .._align import MAX_OFFSET, check_table, maneuver_stop_time, reels_stop_time
 from .._compare import channel_kind
-from ._hypotheses import Problem
+from ._problem import Problem
 from ._locate import LOWPASS_S, noise_level, time_windows
 from ._recording import (
     MIN_DECAY_S,

@@ -29,7 +29,8 @@ from .._executor import as_executor
 from .._machine_figure import picture_at
 from ._band import RESOLVED_HZ, RESOLVED_MIN
 from ._decide import MODEL_ERROR_FULL, MODEL_ERROR_SHARE
-from ._hypotheses import BLOCK_S, DECAY_WEIGHT, MIN_IMPROVEMENT, NULL_QUANTILE, NULL_SURROGATES
+from ._null import MIN_IMPROVEMENT, NULL_QUANTILE, NULL_SURROGATES
+from ._problem import BLOCK_S, DECAY_WEIGHT
 from ._leave_one_out import leave_one_out as _leave_one_out
 from ._locate import LOWPASS_S, structure_threshold
 from ._recording import load_recording

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._hypotheses import bounded_solve
+from ._problem import bounded_solve
 from ._trials import split_channel
 
 __all__ = ["between_trials", "dersimonian_laird", "widened"]

@@ -1,19 +1,8 @@
 """Candidate mechanisms: fit each through the simulator, score it on held-out data.
 
-Steps 2-4 of the diagnosis (``_diagnose``); the verdict's rules are ``_decide``.
-
-Objective
----------
-``chi2 = sum_t sum_c w_t ((m_tc - s_tc - b_c - delta ds_tc/dt) / sigma_c)^2``
-over the dynamic channels ``c``: measured ``m`` minus simulated ``s``, each
-channel scaled by its own noise level ``sigma_c`` (``_locate.noise_level``),
-free-decay samples weighted ``DECAY_WEIGHT`` (the swing after the reels
-stop is where the mechanisms act alone, without the reel table's own
-errors). Nuisance parameters, fitted by linear least squares for every
-simulation: a constant offset ``b_c`` per channel (calibration origin,
-marker placement) and one clock shift ``delta`` (the rope-length alignment
-is good to a fraction of a millisecond, but at 1 m/s that is already a
-noise level), bounded by ``MAX_SHIFT`` about the updated model's own shift.
+Steps 2-4 of the diagnosis (``_diagnose``); the verdict's rules are
+``_decide``, the objective and the held-out scoring ``_problem``'s, what
+noise alone gives ``_null``'s.
 
 Fitting
 -------
@@ -25,28 +14,6 @@ bounded Brent search in the grid cell around the best value. The nominal
 model (``p = 0``) is always one of the evaluated points. Simulations start
 from the nominal equilibrium (a mechanism that acts only on motion leaves
 the rest pose unchanged) and run in ``workers`` processes.
-
-Held-out scoring (2-fold cross-validation)
-------------------------------------------
-Samples fall in alternating ``BLOCK_S`` blocks, fold A and fold B. For each
-fold, the evaluated point (and nuisance) that fits it best is chosen, and
-scored on the other fold; the held-out improvement ``D`` is the drop in
-held-out chi2 against the nominal model scored the same way. Measurement
-noise is independent between the folds, so noise that a fit absorbs on one
-fold is not rewarded on the other.
-
-What noise alone gives (null test)
-----------------------------------
-Surrogate residuals with the same spectrum (hence autocorrelation) and
-cross-channel correlation as the best model's residual are drawn as
-Gaussian noise from its smoothed cross-spectral matrix; for each, every candidate's signature (fitted minus nominal
-simulation) is fitted with a non-negative amplitude on one fold and scored
-on the other exactly as above. The threshold is the ``NULL_QUANTILE``
-quantile of the largest improvement over candidates (a family-wise test),
-and never below ``MIN_IMPROVEMENT`` (twenty times ln N, ln N the BIC
-penalty of one parameter: an allowance for the reconstruction's systematic
-errors, measured on blind sessions, see the constant). A candidate is
-significant when ``D`` exceeds it; ``score`` is ``D / threshold``.
 
 Parameter uncertainty
 ---------------------
@@ -84,14 +51,9 @@ from ._trials import first_maneuver, split_channel, stack_trials, trial_contexts
 
 __all__ = [
     "candidate_list",
-    "Problem",
     "fit_candidates",
-    "null_threshold",
 ]
 
-DECAY_WEIGHT = 2.0
-MAX_SHIFT = 0.01  # s
-BLOCK_S = 0.5
 N_GRID = 6
 # Friction and bending damping stiffen the equations: the stable step falls
 # with the parameter (200x at pulley friction mu = 0.5). A value whose step
@@ -103,19 +65,6 @@ REFINE_EVALS = 6
 # of the best candidate's reduction are refined (the rest keep their grid fit).
 REFINE_FRACTION = 0.2
 REFINE_XATOL = 0.02  # in ln p: 2 %
-NULL_SURROGATES = 400
-SPECTRUM_SMOOTH = 8  # frequency bins either side (0.8 Hz for a 10 s record)
-NULL_QUANTILE = 0.99
-# Floor of the threshold, in chi2 units (a signature of 14 noise sigmas in
-# quadrature). The surrogates model what is left as stationary Gaussian
-# noise; the reconstruction's systematic errors are not (the cubic fit of a
-# rope's markers errs by a few tenths of a millimetre, smoothly, with the
-# rope's shape), and a one-parameter fit absorbs some of them. They weigh
-# more as the lab's noise falls: with the wide-angle lab (1.6 mm marker
-# noise) the best candidate's held-out improvement reached 50 in 9 blind
-# no-physics sessions; with the current one (0.9 mm) it reached 86 in 18
-# of 19 and 172 in one (where the surrogates' own quantile was 371).
-MIN_IMPROVEMENT = 200.0
 # A fitted value in the outermost part of its range is "at the bound".
 BOUND_TOLERANCE = 0.05  # in ln p
 
@@ -207,202 +156,6 @@ def unavailable_reason(candidate, rig, maneuver, discretization):
     return None
 
 
-def bounded_solve(A, g, bounds):
-    """``A x = g`` (normal equations, ``A`` symmetric positive semi-definite) with ``x`` within ``bounds`` (k, 2).
-
-    The unconstrained solution; then, while any coefficient lies outside its
-    bounds, the one furthest outside is held at its bound and the others
-    solved again (an active set without release: exact for one bounded
-    coefficient, which is how the clock shift was always clipped, and for
-    the few here - the shift and the model error's amplitudes - it ends in
-    at most that many rounds).
-    """
-    k = len(g)
-    x = np.linalg.lstsq(A, g, rcond=None)[0]
-    held = np.zeros(k, bool)
-    for _ in range(k):
-        low, high = bounds[:, 0], bounds[:, 1]
-        excess = np.where(held, 0.0, np.maximum(low - x, x - high))
-        worst = int(np.argmax(excess))
-        if excess[worst] <= 0.0:
-            break
-        held[worst] = True
-        x[worst] = np.clip(x[worst], low[worst], high[worst])
-        free = ~held
-        if free.any():
-            x[free] = np.linalg.lstsq(A[np.ix_(free, free)], g[free] - A[np.ix_(free, held)] @ x[held],
-                                      rcond=None)[0]
-    return x
-
-
-class Problem:
-    """Measured data, noise levels, weights and folds: evaluates one simulation.
-
-    Parameters
-    ----------
-    time : ndarray (n,)
-        Uniform time base (s, simulation clock).
-    measured : ndarray (n, c)
-        Measured channels (SI), NaN where not measured.
-    sigma : ndarray (c,)
-        Noise level per channel.
-    t_stop : float or ndarray (c,)
-        When the reels stop (s); per channel for stacked trials (``_trials``).
-    regressors : sequence of ndarray (n, c), optional
-        Further nuisance directions fitted linearly with every simulation
-        (``_updating``: the rig parameters' sensitivities and the model's
-        own numerical error), so that a mechanism is credited only with
-        what they cannot explain.
-    prior_precision, prior_mean : ndarray (k,), optional
-        A Gaussian prior on each regressor's coefficient (precision 0: free).
-    shift_center : float, optional
-        The clock shift (s) the bound ``MAX_SHIFT`` is taken about: the
-        updated model's own (``_updating``), so that the clock the rig's
-        update settled on is not clipped back (a sheave inertia of 4e-4
-        kg m^2 moved the rope-length alignment by 15 ms; clipped at 10 ms,
-        the updated model scored 1.9 times the chi2 its update reached).
-    offset_free : ndarray (c,) of bool, optional
-        Which channels carry a free constant offset (all by default). A
-        channel measured in the frame the model is driven in (a tracker's
-        body beside the points it moves, ``shared_frame``) has none: its
-        mean is the model's to explain.
-    """
-
-    def __init__(self, time, measured, sigma, t_stop, regressors=(), prior_precision=None, prior_mean=None,
-                 shift_center=0.0, regressor_bounds=None, offset_free=None):
-        self.time = np.asarray(time, float)
-        self.dt = float(self.time[1] - self.time[0])
-        self.measured = np.asarray(measured, float)
-        self.sigma = np.asarray(sigma, float)
-        self.valid = np.isfinite(self.measured)
-        c = self.measured.shape[1]
-        self.offset_free = np.ones(c, bool) if offset_free is None else np.asarray(offset_free, bool).reshape(c)
-        # Each channel's own stop (stacked trials, ``_trials``), or one for all.
-        w = np.where(self.time[:, None] >= np.asarray(t_stop, float), DECAY_WEIGHT, 1.0)
-        # Weight of each squared residual: sample weight / sigma^2, 0 if unmeasured.
-        self.W = w * self.valid / self.sigma[None, :] ** 2
-        fold = (np.floor((self.time - self.time[0]) / BLOCK_S).astype(int) % 2).astype(bool)
-        self.folds = {"A": ~fold, "B": fold, "all": np.ones_like(fold)}
-        self.n_weighted = float((w * self.valid).sum())
-        self.m0 = np.where(self.valid, self.measured, 0.0)
-        self.t_stop = t_stop
-        self.shift_center = float(shift_center)
-        self.regressors = np.array([np.where(self.valid, x, 0.0) for x in regressors], float).reshape(
-            len(regressors), *self.measured.shape)
-        k = len(self.regressors)
-        self.prior_precision = np.zeros(k) if prior_precision is None else np.asarray(prior_precision, float)
-        self.prior_mean = np.zeros(k) if prior_mean is None else np.asarray(prior_mean, float)
-        # Each regressor's coefficient within (low, high): the model error's amplitude is bounded.
-        self.regressor_bounds = (np.tile([-np.inf, np.inf], (k, 1)) if regressor_bounds is None
-                                 else np.asarray(regressor_bounds, float).reshape(k, 2))
-        # The regressors do not change between simulations: centre them and
-        # form their Gram matrix once per fold.
-        self._fold_regressors = {}
-        for name, mask in self.folds.items():
-            if not k:
-                break
-            W = self.W * mask[:, None]
-            sw = np.maximum(W.sum(0), 1e-300)
-            xc = self.regressors - self.offset_free * (W * self.regressors).sum(1)[:, None, :] / sw
-            gram = np.einsum("inc,jnc->ij", xc * W, xc)
-            self._fold_regressors[name] = (xc, gram)
-
-    def with_regressors(self, regressors, prior_precision=None, prior_mean=None, shift_center=None, bounds=None):
-        """The same problem with these nuisance regressors (a new object); the shift's centre kept unless given;
-        ``bounds`` (k, 2) on their coefficients (none by default)."""
-        centre = self.shift_center if shift_center is None else shift_center
-        return Problem(self.time, self.measured, self.sigma, self.t_stop, regressors, prior_precision, prior_mean,
-                       centre, bounds, self.offset_free)
-
-    def nuisance(self, sim, rate, fold):
-        """Least-squares offsets b (c,), clock shift delta (s) and regressor coefficients a (k,) on one fold;
-        a channel without a free offset keeps b = 0."""
-        W = self.W * self.folds[fold][:, None]
-        r = self.m0 - sim
-        # Dividing by infinity where the offset is not free: the channel's "mean" is 0 and nothing is centred.
-        sw = np.where(self.offset_free, np.maximum(W.sum(0), 1e-300), np.inf)
-        rc = r - (W * r).sum(0) / sw
-        dc = rate - (W * rate).sum(0) / sw
-        if len(self.regressors):
-            return self._joint_nuisance(W, sw, r, rc, rate, dc, fold)
-        den = float((W * dc * dc).sum())
-        delta = float((W * rc * dc).sum()) / den if den > 0 else 0.0
-        c = self.shift_center
-        delta = float(np.clip(delta, c - MAX_SHIFT, c + MAX_SHIFT))
-        b = ((W * r).sum(0) - delta * (W * rate).sum(0)) / sw
-        return b, delta, np.zeros(0)
-
-    def _joint_nuisance(self, W, sw, r, rc, rate, dc, fold):
-        """Shift and regressors together (normal equations with the priors); offsets eliminated."""
-        xc, gram = self._fold_regressors[fold]
-        k = len(self.regressors)
-        A = np.empty((k + 1, k + 1))
-        A[0, 0] = float((W * dc * dc).sum())
-        A[0, 1:] = A[1:, 0] = np.einsum("inc,nc->i", xc, W * dc)
-        A[1:, 1:] = gram + np.diag(self.prior_precision)
-        g = np.empty(k + 1)
-        g[0] = float((W * rc * dc).sum())
-        g[1:] = np.einsum("inc,nc->i", xc, W * rc) + self.prior_precision * self.prior_mean
-        A[0, 0] = max(A[0, 0], 1e-300)
-        c = self.shift_center
-        bounds = np.vstack([[c - MAX_SHIFT, c + MAX_SHIFT], self.regressor_bounds])
-        coef = bounded_solve(A, g, bounds)
-        delta, a = float(coef[0]), coef[1:]
-        fitted = delta * rate + np.einsum("i,inc->nc", a, self.regressors)
-        b = (W * (r - fitted)).sum(0) / sw
-        return b, delta, a
-
-    def _nuisance_part(self, rate, nuisance):
-        b, delta, a = nuisance
-        part = b[None, :] + delta * rate
-        if len(a):
-            part = part + np.einsum("i,inc->nc", a, self.regressors)
-        return part
-
-    def residual(self, sim, nuisance=None, rate=None):
-        """Measured minus simulated minus nuisance (SI), NaN where unmeasured."""
-        sim = np.asarray(sim, float)
-        rate = np.gradient(sim, self.dt, axis=0) if rate is None else rate
-        nuisance = self.nuisance(sim, rate, "all") if nuisance is None else nuisance
-        return self.measured - sim - self._nuisance_part(rate, nuisance)
-
-    def evaluate(self, sim):
-        """chi2 of one simulation (n, c): on all data and fold by fold.
-
-        Returns
-        -------
-        dict
-            ``full`` (nuisance fitted on all), ``nuisance`` ((b, delta, a)
-            on all), and ``AA``, ``AB``, ``BB``, ``BA``: chi2 on the second
-            fold with the nuisance fitted on the first.
-        """
-        sim = np.asarray(sim, float)
-        rate = np.gradient(sim, self.dt, axis=0)
-        out = {}
-        for fit in ("all", "A", "B"):
-            nuisance = self.nuisance(sim, rate, fit)
-            r = self.m0 - sim - self._nuisance_part(rate, nuisance)
-            sq = self.W * r * r
-            if fit == "all":
-                out["full"] = float(sq.sum())
-                out["nuisance"] = nuisance
-                continue
-            for ev in ("A", "B"):
-                out[fit + ev] = float(sq[self.folds[ev]].sum())
-        return out
-
-    def held_out_residual(self, sim_a, sim_b):
-        """Each sample's held-out residual (n, c, SI; 0 where unmeasured): fold B's with the fit on A (``sim_a``),
-        fold A's with the fit on B. ``sum W r^2`` of it is ``evaluate``'s ``AB`` of ``sim_a`` plus ``BA`` of
-        ``sim_b``: a candidate's held-out score."""
-        out = np.zeros(self.measured.shape)
-        for sim, fit, held in ((sim_a, "A", "B"), (sim_b, "B", "A")):
-            sim = np.asarray(sim, float)
-            rate = np.gradient(sim, self.dt, axis=0)
-            r = self.m0 - sim - self._nuisance_part(rate, self.nuisance(sim, rate, fit))
-            mask = self.folds[held]
-            out[mask] = np.where(self.valid, r, 0.0)[mask]
-        return out
 
 
 # ---------------------------------------------------------------- simulation workers
@@ -705,79 +458,6 @@ def profile_uncertainty(profile, value, kappa):
     return float(math.sqrt(kappa / a))
 
 
-def null_threshold(problem, residual, signatures, seed=0, n_surrogates=NULL_SURROGATES):
-    """What noise alone gives: the NULL_QUANTILE of the best held-out improvement over candidates.
-
-    Parameters
-    ----------
-    problem : Problem
-    residual : ndarray (n, c)
-        The best model's residual (SI), NaN where unmeasured; its spectrum
-        and cross-channel correlation make the surrogates.
-    signatures : list of ndarray (n, c)
-        Each candidate's fitted minus nominal simulation (SI).
-    seed : int
-
-    Returns
-    -------
-    threshold : float
-        In chi2 units, at least MIN_IMPROVEMENT.
-    quantile : float
-        The surrogate quantile itself.
-    """
-    if not signatures:
-        return MIN_IMPROVEMENT, 0.0
-    z = _weighted_signal(problem, residual)
-    g = np.stack([_weighted_signal(problem, s) for s in signatures])  # (k, n, c)
-    A, B = problem.folds["A"], problem.folds["B"]
-    gAA = (g[:, A] ** 2).sum(axis=(1, 2))
-    gBB = (g[:, B] ** 2).sum(axis=(1, 2))
-    rng = np.random.default_rng(seed)
-    chol = _spectral_factor(z)
-    n_t = z.shape[0]
-    best = np.empty(n_surrogates)
-    for k in range(n_surrogates):
-        n = surrogate(chol, n_t, rng)
-        gnA = np.einsum("knc,nc->k", g[:, A], n[A])
-        gnB = np.einsum("knc,nc->k", g[:, B], n[B])
-        aA = np.maximum(gnA / np.maximum(gAA, 1e-300), 0.0)
-        aB = np.maximum(gnB / np.maximum(gBB, 1e-300), 0.0)
-        d = (2 * aA * gnB - aA**2 * gBB) + (2 * aB * gnA - aB**2 * gAA)
-        best[k] = d.max()
-    q = float(np.quantile(best, NULL_QUANTILE))
-    return max(q, MIN_IMPROVEMENT), q
-
-
-def surrogate(chol, n_t, rng):
-    """One Gaussian surrogate (n_t, c) with the cross-spectrum whose Cholesky factors are ``chol``
-    (``_spectral_factor``)."""
-    xi = (rng.normal(size=chol.shape[:2]) + 1j * rng.normal(size=chol.shape[:2])) / math.sqrt(2.0)
-    xi[0] = rng.normal(size=chol.shape[1])  # the mean and (even n) Nyquist terms are real
-    if n_t % 2 == 0:
-        xi[-1] = rng.normal(size=chol.shape[1])
-    return np.fft.irfft(np.einsum("fij,fj->fi", chol, xi), n_t, axis=0)
-
-
-def _spectral_factor(z):
-    """Cholesky factors of the smoothed cross-spectral matrix of z's columns, (freqs, c, c).
-
-    The raw periodogram of one record scatters like chi^2 with two degrees
-    of freedom at every frequency; surrogates that kept it exactly (plain
-    phase randomisation) would carry that scatter as spurious correlation
-    between the folds. Averaging over ``SPECTRUM_SMOOTH`` neighbouring
-    frequencies on either side gives a spectrum estimate to draw Gaussian
-    surrogates from.
-    """
-    from scipy.ndimage import uniform_filter1d
-
-    spec = np.fft.rfft(z, axis=0)
-    cross = spec[:, :, None] * spec.conj()[:, None, :]
-    size = 2 * SPECTRUM_SMOOTH + 1
-    cross = uniform_filter1d(cross.real, size, axis=0, mode="reflect") + 1j * uniform_filter1d(
-        cross.imag, size, axis=0, mode="reflect")
-    ridge = 1e-9 * max(float(np.mean(np.abs(np.einsum("fii->fi", cross)))), 1e-300)
-    cross = cross + ridge * np.eye(z.shape[1])[None]
-    return np.linalg.cholesky(cross)
 
 
 def signature_match(problem, nominal_residual, signature):

@@ -12,7 +12,7 @@ when the lead's mean is zero. The test reads the lead against that term's
 spread, one-sided at the null test's quantile.
 
 The spread comes from surrogates of the lead's own held-out residual, drawn
-as the noise threshold's are (``_hypotheses.null_threshold``: its smoothed
+as the noise threshold's are (``_null.null_threshold``: its smoothed
 cross-spectral matrix), but amplitude-modulated by the residual's local RMS
 over ``ENVELOPE_S``: model error is not stationary - a mechanism's
 signature, and the error of the rival that imitates it, live in some phases
@@ -59,8 +59,10 @@ import numpy as np
 from scipy import stats
 from scipy.ndimage import uniform_filter1d
 
-from ._hypotheses import BLOCK_S, NULL_QUANTILE, NULL_SURROGATES, _spectral_factor, _weighted_signal, surrogate
+from ._hypotheses import _weighted_signal
 from ._model_error import MODEL_ERROR_FACTOR
+from ._null import NULL_QUANTILE, NULL_SURROGATES, _spectral_factor, surrogate
+from ._problem import BLOCK_S
 
 __all__ = ["lead_tests", "ENVELOPE_S"]
 

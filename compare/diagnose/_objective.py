@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from .._compare import channel_kind
-from ._hypotheses import bounded_solve
+from ._problem import bounded_solve
 from ._model_error import ERROR_AMPLITUDE_SD, ErrorDirections
 from ._scale import REFERENCE
 

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 from ...simulate import make_mechanism
 from ._band import band_improvement, significance
-from ._hypotheses import fit_candidates, null_threshold, score_candidate
+from ._hypotheses import fit_candidates, score_candidate
+from ._null import null_threshold
 
 __all__ = ["second_round", "is_second", "seconds_of_document"]
 

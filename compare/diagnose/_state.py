@@ -64,7 +64,7 @@ class Recording:
 
 @dataclass(frozen=True)
 class NullTest:
-    """What noise alone and the model's own error give (``_hypotheses.null_threshold``, ``_decide``)."""
+    """What noise alone and the model's own error give (``_null.null_threshold``, ``_decide``)."""
 
     threshold: float
     noise_threshold: float

@@ -45,7 +45,6 @@ from ._hypotheses import (
     autocorrelation_time,
     candidate_list,
     fit_candidates,
-    null_threshold,
     score_candidate,
     signature_match,
     simulate_channels,
@@ -54,6 +53,7 @@ from ._hypotheses import (
 from ._lead import lead_tests
 from ._locate import locate_mismatch
 from ._model_error import finer_discretization, mark_model_error, model_error
+from ._null import null_threshold
 from ._predict import held_out_entry
 from ._second_round import second_round
 from ._sites import drop_law_twins, join_alike_sites, screen_sites, sets_to_split
