@@ -156,8 +156,6 @@ def unavailable_reason(candidate, rig, maneuver, discretization):
     return None
 
 
-
-
 # ---------------------------------------------------------------- simulation workers
 
 _CTX = {}
@@ -456,8 +454,6 @@ def profile_uncertainty(profile, value, kappa):
     if not a > 0:
         return None
     return float(math.sqrt(kappa / a))
-
-
 
 
 def signature_match(problem, nominal_residual, signature):

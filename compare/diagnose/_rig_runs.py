@@ -16,6 +16,7 @@ from ...simulate import SimulationError, StaticsError, make_mechanism, simulate
 from ._hypotheses import channels_on
 from ._trials import apply_to_trials, joined_states, stack_trials, trial_contexts
 
+
 class _Run(NamedTuple):
     """What ``_rig_job`` returns: the channels (n, c), the trials' equilibria and step schedules (None: failed)."""
 
