@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from dragline.compare import SITES_ALIKE, as_executor, diagnose_path
+from dragline.compare import SITES_ALIKE, DecisionRules, as_executor, diagnose_path, recording_floor
 from dragline.simulate import default_maneuver, load_rig, make_mechanism, mechanism_sites, mechanism_type, simulate
 
 from ._discovery import RIGHT_WITHIN, THRESHOLD_MULTIPLES, _film, _no_context, _three_digits, _truth_world, keeper
@@ -221,7 +221,8 @@ def _run_site_case(name, value, seed, workdir=None, keep=False, rig_name=None):
     result = simulate(rig, maneuver, discretization, physics, duration=_duration(rig_name), rate_hz=200.0)
     _film(result, machine, seed, folder, default_maneuver(machine))
     cosines = truth_site_cosines(name, value, seed, rig_name)
-    out = {"truth": name, "value": value, "seed": seed, "rig": rig_name or "dragline", "truth_cosines": cosines}
+    out = {"truth": name, "value": value, "seed": seed, "rig": rig_name or "dragline", "truth_cosines": cosines,
+           "truth_floor": _truth_floor(folder, machine, result)}
     t0 = time.perf_counter()
     try:
         doc = diagnose_path(folder, rig=machine, workers=1, seed=seed, candidates=list(SITE_CANDIDATES)).doc
@@ -248,6 +249,36 @@ def _run_site_case(name, value, seed, workdir=None, keep=False, rig_name=None):
     if keep:
         out["diagnosis"] = doc
     return out
+
+
+def site_floors(seed=0, rig_name=None):
+    """Each site case's truth filmed and its own floor against its recording (``_truth_floor``), no diagnosis: the
+    figure a run of ``bench_sites`` reports per case, for a run made before it did."""
+    machine = load_rig(rig_name)
+    out = []
+    for name, value, case_seed in site_cases(seed, rig_name or "dragline"):
+        workdir = tempfile.mkdtemp(prefix="dragline-floor-")
+        try:
+            rig, maneuver, discretization, physics, _ = _truth_world(name, value, case_seed, rig_name=rig_name)
+            result = simulate(rig, maneuver, discretization, physics, duration=_duration(rig_name), rate_hz=200.0)
+            folder = os.path.join(workdir, f"case{case_seed}")
+            _film(result, machine, case_seed, folder, default_maneuver(machine))
+            out.append({"truth": name, "value": value, "seed": case_seed,
+                        "truth_floor": _truth_floor(folder, machine, result)})
+        finally:
+            shutil.rmtree(workdir, ignore_errors=True)
+    return out
+
+
+def _truth_floor(folder, machine, result):
+    """The filmed truth's own chi2 against its recording (``recording_floor``), or None where it cannot be read."""
+    try:
+        floor = recording_floor(folder, machine, result)
+    except ValueError:
+        return None
+    return {"chi2_per_sample": floor["chi2_per_sample"], "worst_channel": floor["worst_channel"],
+            "worst_chi2_per_sample": floor["per_channel"][floor["worst_channel"]],
+            "beyond_adequate": floor["chi2_per_sample"] > DecisionRules().adequate_rms ** 2}
 
 
 def bench_sites(seed=0, workers=2, keep=None, progress=None, rig_name=None):
@@ -282,6 +313,7 @@ def bench_sites(seed=0, workers=2, keep=None, progress=None, rig_name=None):
             "right_site": sum(bool(r.get("right_site")) for r in results),
             "within": sum(bool(r.get("within")) for r in results),
             "screened_in": sum(r.get("screened_in") is not False for r in results),
+            "floor_beyond_adequate": sum(bool((r.get("truth_floor") or {}).get("beyond_adequate")) for r in results),
             "timing": {"wall_s": time.perf_counter() - started,
                        "diagnosis_s": [r.get("diagnosis_seconds") for r in results]}}
 
@@ -289,9 +321,12 @@ def bench_sites(seed=0, workers=2, keep=None, progress=None, rig_name=None):
 def _line(r):
     fitted = "" if r.get("fitted") is None else f" fitted {r['fitted']:.3g}"
     alike = ", ".join(f"{s} {c:.2f}" for s, c in r["truth_cosines"].items())
+    floor = r.get("truth_floor")
+    floor = "" if floor is None else (f"; truth's own floor {floor['chi2_per_sample']:.2f} per sample, "
+                                      f"{floor['worst_channel']} {floor['worst_chi2_per_sample']:.1f}")
     return (f"{r['truth']}={r['value']:g} -> {r['verdict']}{fitted} (law {'right' if r.get('right_law') else 'wrong'},"
             f" site {'right' if r.get('right_site') else 'wrong'}; screen {r.get('screened_in')}; truth cosines "
-            f"{alike}; {r.get('diagnosis_seconds', 0):.0f} s)")
+            f"{alike}{floor}; {r.get('diagnosis_seconds', 0):.0f} s)")
 
 
 def summary_lines(report):
@@ -300,6 +335,9 @@ def summary_lines(report):
              f"{report['right_law']} ({report['right_law'] / max(n, 1):.0%}), right site {report['right_site']} "
              f"({report['right_site'] / max(n, 1):.0%}), value within {RIGHT_WITHIN:.0%} {report['within']}, "
              f"true site through the screen {report['screened_in']}"]
+    if "floor_beyond_adequate" in report:
+        lines.append(f"  recordings the filmed truth itself misses by more than the adequacy rule allows "
+                     f"({DecisionRules().adequate_rms:g} sigma): {report['floor_beyond_adequate']} of {n}")
     lines += ["  " + _line(r) for r in report["cases"]]
     lines += [f"  left out: {b['truth']}={b['value']:g}, beyond its plausible range (top {b['range_top']:g})"
               for b in report["beyond_range"]]

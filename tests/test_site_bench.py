@@ -123,3 +123,23 @@ def test_a_rig_file_value_beyond_its_tolerance_is_the_updatings_to_report_within
     # A truth the file's tolerance still holds (drawn 0.3 below, 1.2 times on top): "none" is right.
     drawn[wire] = -0.3 * tol
     assert rig_value_right(name, 0.2, "none", parameters, drawn, []) == (True, True, None)
+
+
+def test_a_recording_whose_filmed_truth_the_adequacy_rule_would_refuse_is_counted_and_said():
+    """The truth's own floor (``recording_floor``) beyond ADEQUATE_RMS squared: not even the motion filmed would
+    pass rule 5b's guard there, and the summary says how many such recordings a run had."""
+    from dragline.benchmarks._site_cases import summary_lines
+    from dragline.compare import DecisionRules
+
+    limit = DecisionRules().adequate_rms ** 2
+    case = {"truth": "pulley_friction@boom", "value": 0.01, "verdict": "unexplained", "truth_cosines": {"boom": 1.0},
+            "right_law": False, "right_site": False, "screened_in": True, "diagnosis_seconds": 1.0}
+    cases = [dict(case, truth_floor={"chi2_per_sample": f, "worst_channel": "bucket.pitch",
+                                     "worst_chi2_per_sample": 3 * f, "beyond_adequate": f > limit})
+             for f in (0.9 * limit, 1.1 * limit)]
+    report = {"n_cases": 2, "seed": 1, "right_law": 0, "right_site": 0, "within": 0, "screened_in": 2,
+              "floor_beyond_adequate": sum(c["truth_floor"]["beyond_adequate"] for c in cases), "cases": cases,
+              "beyond_range": []}
+    lines = summary_lines(report)
+    assert "by more than the adequacy rule allows (2.4 sigma): 1 of 2" in lines[1]
+    assert f"truth's own floor {1.1 * limit:.2f} per sample, bucket.pitch" in lines[3]

@@ -46,6 +46,7 @@ from ._decide import DecisionRules, rethresholded, verdict_of_document
 from ._second_round import seconds_of_document
 from ._steps import SECOND_EXCESS_SHARE
 from ._detection import detection_thresholds
+from ._floor import recording_floor
 from ._hypotheses import REFINE_XATOL, candidate_list
 from ._summary import ERROR_ALONG_SIGNATURE, SYSTEMATIC_FLOOR
 from ._leave_one_out import leave_one_out
@@ -55,6 +56,6 @@ from ._scale import FREE_HZ, MachineScale, machine_scale
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
            "write_diagnosis_report", "candidate_list", "draw_held_out", "leave_one_out", "MachineScale",
-           "machine_scale", "FREE_HZ", "detection_thresholds", "DecisionRules", "verdict_of_document",
+           "machine_scale", "FREE_HZ", "detection_thresholds", "recording_floor", "DecisionRules", "verdict_of_document",
            "rethresholded", "seconds_of_document", "SECOND_EXCESS_SHARE", "ERROR_ALONG_SIGNATURE",
            "SYSTEMATIC_FLOOR", "REFINE_XATOL", "SITES_ALIKE", "SCREEN_SHARE", "BOUND_TOLERANCES"]
