@@ -22,6 +22,11 @@ the true one and are at most two, or all alike to it by that rule. A law
 that says a rig-file value is wrong (a rope type's damping) is the
 updating's to report while the value lies within its bounds: there "none"
 with that value moved beyond its tolerance is right (``rig_value_right``).
+
+Each case also records the truth's own floor (``recording_floor``): the
+filmed motion against its recording, on the clock its rope lengths give -
+what no model can go below - so that a miss on a recording even the truth
+would leave beyond the adequacy rule is told by the truth, not the verdict.
 """
 
 from __future__ import annotations
