@@ -1,12 +1,13 @@
-"""The recording's clock, read from its rope lengths against a model's: against the updated rig, not only the
-nominal one."""
+"""The recording's clock, read from its rope lengths against a model's: a rig drawn within its tolerances puts
+the nominal model's reading off by more than the linear clock shift follows; the rig it was recorded from
+does not."""
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from dragline.benchmarks._discovery import _truth_world
-from dragline.compare.diagnose._align_recording import CLOCK_RESOLUTION, align_recording, realigned
+from dragline.compare.diagnose._align_recording import align_recording
 from dragline.compare.diagnose._hypotheses import channels_on
 from dragline.compare.diagnose._state import DiagnosisState
 from dragline.simulate import default_maneuver, load_rig, simulate
@@ -28,21 +29,18 @@ def drawn_dragline():
     state = DiagnosisState(measured=table, rig=rig, maneuver=default_maneuver(rig), discretization="baseline",
                            candidate_names=None, workers=1, seed=0, source=None, note=None, started=0.0,
                            trial_names=None, held_out=())
-    return align_recording(state), truth_rig, truth_maneuver
+    return state, truth, align_recording(state)
 
 
 def test_the_nominal_models_rope_lengths_put_a_drawn_rigs_clock_off(drawn_dragline):
-    state, _, _ = drawn_dragline
-    # The recording's clock is the truth's: any offset is the nominal model's ropes stretching otherwise.
-    assert abs(state.recording.offset) > 5 * CLOCK_RESOLUTION
+    _, _, aligned = drawn_dragline
+    # The recording's clock is the truth's: the offset is the nominal model's ropes stretching otherwise, more
+    # than five samples' worth at 1 kHz (the site benchmark's filmed recordings: -18 to +9 ms).
+    assert abs(aligned.recording.offset) > 5e-3
 
 
 def test_read_against_the_rig_the_recording_is_of_the_clock_comes_back(drawn_dragline):
-    state, truth_rig, truth_maneuver = drawn_dragline
-    again = realigned(state, truth_rig, truth_maneuver)
-    assert again is not None
-    assert abs(again.recording.offset) <= CLOCK_RESOLUTION
-    assert again.recording.alignment["offset_against_nominal"] == pytest.approx(state.recording.offset)
-    assert again.plain_problem.time[0] == pytest.approx(state.plain_problem.time[0], abs=0.02)
-    # Read again against the same rig, it does not move: nothing to do.
-    assert realigned(again, truth_rig, truth_maneuver) is None
+    state, truth, aligned = drawn_dragline
+    again = align_recording(state, clock_table=truth.table)
+    assert abs(again.recording.offset) < 1e-3  # a fifth of a sample
+    assert again.recording.channels == aligned.recording.channels

@@ -34,12 +34,7 @@ from ._start import estimate_start, start_parameters
 from ._state import Recording, _note
 from ._trials import SEPARATOR, each_trials_own
 
-__all__ = ["align_recording", "realigned", "CLOCK_RESOLUTION"]
-
-# What the rope-length clock resolves: read against the filmed truth's own rope lengths on three realistic
-# dragline recordings whose clock is the truth's, it came out 0.5-1.2 ms early (0.5-0.6 ms by the drag rope
-# alone: the reconstruction's share). A clock read again that moves by no more is kept as it was.
-CLOCK_RESOLUTION = 1.0e-3  # s
+__all__ = ["align_recording"]
 
 
 def align_recording(state, clock_table=None):
@@ -48,7 +43,8 @@ def align_recording(state, clock_table=None):
     Several trials (``state.trial_names``): each aligned as one would be, then
     stacked side by side (``_trials``). ``clock_table``: the trajectory
     table whose rope lengths the recording's clock is read against (one
-    trial; the nominal model's by default, ``realigned``).
+    trial; the nominal model's by default; ``recording_floor`` reads it
+    against the filmed truth's).
     """
     held = []
     for name, measured, maneuver in state.held_out:
@@ -76,33 +72,6 @@ def align_recording(state, clock_table=None):
         except ValueError as exc:
             raise ValueError(f"trial {name}: {exc}") from None
     return _stacked(state, trials)
-
-
-def realigned(state, rig, maneuver):
-    """The state with the recording's clock read again against ``(rig, maneuver)`` (the updated model), or None
-    where that moves it by no more than ``CLOCK_RESOLUTION`` or it cannot be read again.
-
-    The clock is read from the recorded rope lengths against a model's, and a
-    model whose rig is not the recording's stretches its ropes otherwise: on
-    realistic dragline recordings whose clock is the truth's, the nominal
-    model put it more than 5 ms off on half of them (up to 18 ms), where the
-    clock shift fitted with every simulation - linear, bounded by
-    ``MAX_SHIFT`` - cannot follow the spreader bar's 40 Hz rattle after the
-    reels stop, and on one the filmed truth itself missed its own recording
-    by eleven times the noise (docs/diagnosis.md, section 3, "The clock read
-    again against the updated rig"). One trial whose clock the rope lengths
-    give.
-    """
-    if state.trial_names is not None or state.start_from_recording or not state.recording.alignment.get("ropes"):
-        return None
-    record = float(state.recording.time[-1] - state.recording.time[0]) + 2 * MAX_OFFSET
-    table = simulate(rig, maneuver, state.discretization, [], duration=record, rate_hz=state.recording.rate_hz).table
-    again = align_recording(state, clock_table=table)
-    if abs(again.recording.offset - state.recording.offset) <= CLOCK_RESOLUTION:
-        return None
-    alignment = dict(again.recording.alignment, read_against="the updated rig",
-                     offset_against_nominal=float(state.recording.offset))
-    return replace(again, recording=replace(again.recording, alignment=alignment))
 
 
 def _stacked(state, trials):

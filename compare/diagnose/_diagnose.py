@@ -289,8 +289,7 @@ def diagnosis_of(state):
         "alignment": {"time_offset": rec.offset, "time_shift_nominal": float(shift0),
                       "ropes": rec.alignment["ropes"], "reels_stop": float(rec.t_stop),
                       "reels_stop_method": rec.stop_method,
-                      **{k: rec.alignment[k] for k in ("start", "read_against", "offset_against_nominal")
-                         if k in rec.alignment}},
+                      **({"start": rec.alignment["start"]} if "start" in rec.alignment else {})},
         "trials": rec.trials,
         "held_out": state.predictions,
         "source": state.source or {},

@@ -34,7 +34,7 @@ import numpy as np
 
 from ...simulate import make_mechanism
 from .._compare import channel_kind
-from ._align_recording import align_recording, realigned
+from ._align_recording import align_recording
 from ._band import band_improvement, significance
 from ._calibration_block import OFFSET_FINDING
 from ._confounding import marginal_uncertainty, nuisance_correlation, parameter_span_share
@@ -89,38 +89,15 @@ def locate_nominal(state):
 
 
 def update_rig(state):
-    """The model's own numerical error, then the rig's parameters updated within their tolerances; the
-    recording's clock read again against the updated rig and, where it moves, the rig updated again on it."""
+    """The model's own numerical error, then the rig's parameters updated within their tolerances."""
     problem, ctx, workers = state.plain_problem, state.nominal_ctx, state.workers
+    note = state.note
     _note(state, "estimating the model's own numerical error (finer discretization, half time step)")
     directions, block = model_error(problem, ctx, state.nominal_sim, workers=workers)
     if not ctx["parameters"]:
         return replace(state, problem=problem.with_regressors(directions, bounds=directions.amplitude_bounds()),
                        base_sim=state.nominal_sim,
                        error_directions=directions, model_error_block=block, model_error_sims=2)
-    update, directions, block = _updated(state, directions)
-    # The clock was read against the nominal model's rope lengths; the updated rig stretches its ropes as the
-    # recorded rig does, so it is read again against that, and where it moves the recording is put on the new
-    # clock and updated anew (once).
-    again = realigned(state, update["rig"], update["maneuver"])
-    if again is None:
-        return _with_update(state, update, directions, block, model_error_sims=4)
-    moved = again.recording.offset - state.recording.offset
-    _note(state, f"the recording's clock read again against the updated rig: {1000 * moved:+.1f} ms; the rig "
-                 "updated again on it")
-    before = update["n_simulations"]
-    state = locate_nominal(again)
-    directions, _ = model_error(state.plain_problem, state.nominal_ctx, state.nominal_sim, workers=workers)
-    update, directions, block = _updated(state, directions)
-    update["n_simulations"] += before
-    # Four estimates of the model's error, two runs each, and the clock's own two runs.
-    return _with_update(state, update, directions, block, model_error_sims=10)
-
-
-def _updated(state, directions):
-    """The rig updated from nominal with the model's error ``directions``, that error estimated again at the
-    rig it reached, and updating resumed with it: ``(update, directions, model-error block)``."""
-    problem, ctx, workers, note = state.plain_problem, state.nominal_ctx, state.workers, state.note
     _note(state, f"updating {len(ctx['parameters'])} rig parameters within their tolerances")
     update = update_model(problem, ctx, state.nominal_sim, directions, workers=workers, progress=note)
     # The finer model's difference depends on the parameters (a few percent
@@ -133,7 +110,7 @@ def _updated(state, directions):
         update["sim"], workers=workers)
     block["rig"] = "updated"
     update = update_model(problem, ctx, state.nominal_sim, directions, workers=workers, progress=note, start=update)
-    return update, directions, block
+    return _with_update(state, update, directions, block, model_error_sims=4)
 
 
 def _with_update(state, update, directions, block, model_error_sims):
