@@ -68,7 +68,8 @@ __all__ += ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_d
             "write_diagnosis_report", "write_results", "DIG_PEAKS",
             "MachinePicture", "machine_picture", "picture_at", "draw_machine", "marked_sites", "MachineScale",
             "machine_scale",
-            "detection_thresholds", "recording_floor", "DecisionRules", "verdict_of_document", "rethresholded", "seconds_of_document",
+            "detection_thresholds", "recording_floor", "DecisionRules", "verdict_of_document", "rethresholded",
+            "seconds_of_document",
             "SECOND_EXCESS_SHARE", "ERROR_ALONG_SIGNATURE", "SYSTEMATIC_FLOOR", "REFINE_XATOL",
             "SITES_ALIKE", "SCREEN_SHARE", "BOUND_TOLERANCES",
             "Executor", "LocalExecutor", "DaskExecutor", "ExecutorError", "executor_from", "as_executor"]

@@ -34,8 +34,8 @@ def drawn_dragline():
 
 def test_the_nominal_models_rope_lengths_put_a_drawn_rigs_clock_off(drawn_dragline):
     _, _, aligned = drawn_dragline
-    # The recording's clock is the truth's: the offset is the nominal model's ropes stretching otherwise, more
-    # than five samples' worth at 1 kHz (the site benchmark's filmed recordings: -18 to +9 ms).
+    # The recording's clock is the truth's: the offset is the nominal model's ropes stretching otherwise, a
+    # whole 200 Hz sample or more (the site benchmark's filmed recordings: -18 to +9 ms).
     assert abs(aligned.recording.offset) > 5e-3
 
 

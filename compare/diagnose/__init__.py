@@ -56,6 +56,7 @@ from ._scale import FREE_HZ, MachineScale, machine_scale
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_path", "load_recording", "write_diagnosis_json",
            "write_diagnosis_report", "candidate_list", "draw_held_out", "leave_one_out", "MachineScale",
-           "machine_scale", "FREE_HZ", "detection_thresholds", "recording_floor", "DecisionRules", "verdict_of_document",
-           "rethresholded", "seconds_of_document", "SECOND_EXCESS_SHARE", "ERROR_ALONG_SIGNATURE",
-           "SYSTEMATIC_FLOOR", "REFINE_XATOL", "SITES_ALIKE", "SCREEN_SHARE", "BOUND_TOLERANCES"]
+           "machine_scale", "FREE_HZ", "detection_thresholds", "recording_floor", "DecisionRules",
+           "verdict_of_document", "rethresholded", "seconds_of_document", "SECOND_EXCESS_SHARE",
+           "ERROR_ALONG_SIGNATURE", "SYSTEMATIC_FLOOR", "REFINE_XATOL", "SITES_ALIKE", "SCREEN_SHARE",
+           "BOUND_TOLERANCES"]

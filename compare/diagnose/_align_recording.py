@@ -21,6 +21,7 @@ from ._problem import Problem
 from ._locate import LOWPASS_S, noise_level, time_windows
 from ._recording import (
     MIN_DECAY_S,
+    load_recording,
     align_with_maneuver,
     check_channels,
     check_maneuver,
@@ -31,10 +32,10 @@ from ._recording import (
 )
 from ._scale import machine_scale
 from ._start import estimate_start, start_parameters
-from ._state import Recording, _note
+from ._state import DiagnosisState, Recording, _note
 from ._trials import SEPARATOR, each_trials_own
 
-__all__ = ["align_recording"]
+__all__ = ["align_recording", "aligned_path"]
 
 
 def align_recording(state, clock_table=None):
@@ -72,6 +73,16 @@ def align_recording(state, clock_table=None):
         except ValueError as exc:
             raise ValueError(f"trial {name}: {exc}") from None
     return _stacked(state, trials)
+
+
+def aligned_path(path, rig, workers=1, progress=None, clock_table=None):
+    """The first step on the one recording at ``path`` (``load_recording``), at the baseline level, with the
+    diagnosis's defaults: what a caller that weighs something else against the recording starts from."""
+    table, maneuver, source = load_recording(path, rig=rig)
+    state = DiagnosisState(measured=table, rig=rig, maneuver=maneuver, discretization="baseline",
+                           candidate_names=None, workers=workers, seed=0, source=source, note=progress,
+                           started=0.0, trial_names=None, held_out=())
+    return align_recording(state, clock_table=clock_table)
 
 
 def _stacked(state, trials):

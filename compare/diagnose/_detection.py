@@ -19,12 +19,10 @@ import math
 import numpy as np
 from scipy.optimize import lsq_linear
 
-from ._align_recording import align_recording
+from ._align_recording import aligned_path
 from ._confounding import _centred
 from ._hypotheses import simulate_channels
 from ._model_error import ERROR_AMPLITUDE_SD
-from ._recording import load_recording
-from ._state import DiagnosisState
 from ._steps import locate_nominal, own_error_weight, update_rig
 
 __all__ = ["detection_thresholds", "threshold_crossing", "unabsorbed_chi2"]
@@ -81,11 +79,8 @@ def unabsorbed_chi2(problem, signature, columns, precision, bounds):
 
 
 def _updated_state(path, rig, workers, progress):
-    table, maneuver, source = load_recording(path, rig=rig)
-    state = DiagnosisState(measured=table, rig=rig, maneuver=maneuver, discretization="baseline",
-                           candidate_names=None, workers=workers, seed=0, source=source, note=progress,
-                           started=0.0, trial_names=None, held_out=())
-    for step in (align_recording, locate_nominal, update_rig):
+    state = aligned_path(path, rig, workers, progress)
+    for step in (locate_nominal, update_rig):
         state = step(state)
     return state
 

@@ -6,19 +6,17 @@ model can go below - the capture's error beyond the noise the diagnosis
 estimates (its cameras' calibration, the reconstruction) - and so it says,
 independently of any verdict, whether a recording can be described to the
 rules' standard at all (``ADEQUATE_RMS``, ``LEFTOVER_SHARE``;
-docs/diagnosis.md, section 3, "The clock read again against the updated
-rig").
+docs/diagnosis.md, section 3, "The clock the nominal model gives, and what
+it costs").
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ._align_recording import align_recording
+from ._align_recording import aligned_path
 from ._hypotheses import channels_on
 from ._objective import _apply, _design, _objective_at, _offset_prior
-from ._recording import load_recording
-from ._state import DiagnosisState
 from ._trials import stack_trials, trial_contexts
 
 __all__ = ["recording_floor"]
@@ -49,11 +47,7 @@ def recording_floor(path, rig, reference):
         priors first, as in every fit of the diagnosis (no model-error
         directions: the reference has no discretization error of its own).
     """
-    table, maneuver, source = load_recording(path, rig=rig)
-    state = DiagnosisState(measured=table, rig=rig, maneuver=maneuver, discretization="baseline",
-                           candidate_names=None, workers=1, seed=0, source=source, note=None, started=0.0,
-                           trial_names=None, held_out=())
-    state = align_recording(state, clock_table=reference.table)
+    state = aligned_path(path, rig, clock_table=reference.table)
     problem, ctx = state.plain_problem, state.nominal_ctx
     trials = trial_contexts(ctx)
     if len(trials) != 1:
