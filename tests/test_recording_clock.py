@@ -44,3 +44,42 @@ def test_read_against_the_rig_the_recording_is_of_the_clock_comes_back(drawn_dra
     again = align_recording(state, clock_table=truth.table)
     assert abs(again.recording.offset) < 1e-3  # a fifth of a sample
     assert again.recording.channels == aligned.recording.channels
+
+
+def _rattling_recording(late, noise, rate_hz=200.0):
+    """A swing (0.6 Hz) with a rattle (40 Hz, as the spreader bar's after the reels stop) on two channels,
+    recorded ``late`` seconds late with white noise: the analytic motion, its recording and the noise. Before
+    it starts the machine is still."""
+    t = np.arange(0.0, 10.0, 1.0 / rate_hz)
+
+    def motion(at):
+        at = np.maximum(at, 0.0)
+        rattle = 0.004 * np.exp(-0.3 * at) * np.sin(2 * np.pi * 40.0 * at)
+        swing = 2 * np.pi * 0.6 * at
+        return np.column_stack([0.3 * np.sin(swing) + rattle, 0.1 * np.cos(swing) - rattle])
+
+    recorded = motion(t - late) + np.random.default_rng(5).normal(size=(t.size, 2)) * noise
+    return t, motion(t), recorded
+
+
+def test_the_clock_shift_is_read_exactly_where_the_linear_term_cannot_follow():
+    from dragline.compare.diagnose._objective import _objective_at
+    from dragline.compare.diagnose._problem import Problem
+
+    late, noise = 0.008, np.array([2.5e-4, 2.5e-4])
+    t, sim, recorded = _rattling_recording(late, noise)
+    problem = Problem(t, recorded, noise, t_stop=5.0)
+    fitted = problem.evaluate(sim)
+    # The model read late (delta = -late reads it at t - late): the noise alone is left.
+    assert fitted["nuisance"][1] == pytest.approx(-late, abs=5e-5)
+    assert fitted["full"] / problem.n_weighted == pytest.approx(1.0, abs=0.1)
+    _, chi2, nuisance, _ = _objective_at(problem, sim, np.zeros(0), np.ones(0), np.array([0.005, 0.005]), [])
+    assert nuisance[-1] == pytest.approx(-late, abs=5e-5)
+    assert chi2 / problem.n_weighted == pytest.approx(1.0, abs=0.1)
+    # What the linear term would leave at its best shift: a quarter of the rattle's period is 6 ms, so the
+    # rattle stays in the residual at about its own size, far above the noise.
+    rate = np.gradient(sim, t, axis=0)
+    r = recorded - sim
+    delta = float((r * rate / noise**2).sum() / (rate * rate / noise**2).sum())
+    linear = ((r - delta * rate - (r - delta * rate).mean(0)) / noise) ** 2
+    assert linear.mean() > 20.0

@@ -17,6 +17,7 @@ import numpy as np
 
 from ._model_error import ERROR_AMPLITUDE_SD, MODEL_ERROR_FACTOR
 from ._objective import MAX_SHIFT_PRIOR, _design, _offset_prior, robust_covariance
+from ._problem import on_clock
 
 __all__ = ["marginal_uncertainty", "nuisance_correlation", "parameter_span_share"]
 
@@ -74,8 +75,11 @@ def marginal_uncertainty(problem, ctx, update, signature, sim, residual, error_d
     z = np.where(problem.valid, np.nan_to_num(residual), 0.0) * np.sqrt(problem.W)
     nuisance_precision = np.r_[np.full(len(errs), ERROR_AMPLITUDE_SD**-2.0), offset_sd**-2.0, MAX_SHIFT_PRIOR**-2.0]
 
+    # On the clock the updated model settled on: the fits' shifts lie within MAX_SHIFT of it.
+    clock = float(update["shift"])
+
     def design(columns, precision):
-        X = _design(problem, sim, [*columns, signature, *errs])
+        X = _design(problem, sim, [*columns, signature, *errs], clock)
         prior = np.r_[precision, 0.0, nuisance_precision]
         return X, prior, np.linalg.inv(X.T @ X + np.diag(prior))
 
@@ -89,7 +93,7 @@ def marginal_uncertainty(problem, ctx, update, signature, sim, residual, error_d
     k = len(active)
     shift = None
     if finer is not None:
-        d = (np.where(problem.valid, finer - sim, 0.0) * np.sqrt(problem.W)).ravel()
+        d = (np.where(problem.valid, on_clock(finer - sim, problem.dt, clock), 0.0) * np.sqrt(problem.W)).ravel()
         shift = float((H_inv @ (X.T @ d))[k])
     sd = math.sqrt(max(float(cov[k, k]), 0.0) + (0.0 if shift is None else (MODEL_ERROR_FACTOR * shift) ** 2))
     corr = [{"parameter": params[i].name, "correlation": float(cov[k, j] / math.sqrt(cov[k, k] * cov[j, j]))}

@@ -16,7 +16,7 @@ import numpy as np
 
 from ._align_recording import aligned_path
 from ._hypotheses import channels_on
-from ._objective import _apply, _design, _objective_at, _offset_prior
+from ._objective import _fit_residual, _objective_at, _offset_prior
 from ._trials import stack_trials, trial_contexts
 
 __all__ = ["recording_floor"]
@@ -54,7 +54,7 @@ def recording_floor(path, rig, reference):
         raise ValueError(f"{path}: a floor is of one trial, the recording has {len(trials)}")
     motion = stack_trials(ctx, [channels_on(reference, trials[0])])
     _, chi2, nuisance, _ = _objective_at(problem, motion, np.zeros(0), np.ones(0), _offset_prior(ctx), [])
-    residual = problem.measured - motion - _apply(_design(problem, motion, []), nuisance, problem, motion.shape)
+    residual = _fit_residual(problem, motion, nuisance, [])
     weighed = np.where(problem.valid, problem.W * residual**2, 0.0)
     counted = (problem.W * problem.sigma[None, :] ** 2).sum(axis=0)  # each channel's weighted samples
     per_channel = {ch: float(weighed[:, j].sum() / max(counted[j], 1e-12)) for j, ch in enumerate(ctx["channels"])}

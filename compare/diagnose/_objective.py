@@ -4,8 +4,9 @@ A fit of the rig's parameters is judged by chi2 over the recording plus
 the priors (the rig file's tolerances on the parameters, ``OFFSET_PRIOR``
 on each channel's constant offset, ``MAX_SHIFT_PRIOR`` on the clock
 shift). The nuisance - the offsets, the clock shift and the model error's
-amplitudes - enters linearly and is solved for at every evaluation
-(``_objective_at``) and projected out of every Jacobian
+amplitudes - is solved for at every evaluation (``_objective_at``; linear
+but for the shift, which is exact as in ``_problem``: the simulation and
+its sensitivities are read on it) and projected out of every Jacobian
 (``_projected_jacobian``: variable projection, Kaufman's form). The
 posterior covariance is taken robustly (``robust_covariance``).
 """
@@ -17,7 +18,7 @@ import math
 import numpy as np
 
 from .._compare import channel_kind
-from ._problem import bounded_solve
+from ._problem import CLOCK_CONVERGED, CLOCK_STEPS, bounded_solve, on_clock
 from ._model_error import ERROR_AMPLITUDE_SD, ErrorDirections
 from ._scale import REFERENCE
 
@@ -44,17 +45,20 @@ def _offset_prior(ctx):
     return np.array([scale.floor(OFFSET_PRIOR, channel_kind(ch), 0.005) for ch in ctx["channels"]])
 
 
-def _design(problem, sim, sensitivities):
+def _design(problem, sim, sensitivities, shift=0.0):
     """Weighted design matrix: the sensitivities' columns, one offset per channel, the clock shift.
 
-    A channel without a free offset (``Problem.offset_free``) keeps its
-    column, all zeros: its offset stays at its prior's mean, 0, and the
-    nuisance vector's layout is the same for every recording.
+    The simulation and the sensitivities are read on the clock ``shift``
+    (s, ``on_clock``): the shift's column is the rate there. A channel
+    without a free offset (``Problem.offset_free``) keeps its column, all
+    zeros: its offset stays at its prior's mean, 0, and the nuisance
+    vector's layout is the same for every recording.
     """
     sw = np.sqrt(problem.W)
+    sim = on_clock(sim, problem.dt, shift)
     n, c = sim.shape
     rate = np.gradient(sim, problem.dt, axis=0)
-    cols = [np.where(problem.valid, s, 0.0) * sw for s in sensitivities]
+    cols = [np.where(problem.valid, on_clock(s, problem.dt, shift), 0.0) * sw for s in sensitivities]
     for j in range(c):
         e = np.zeros((n, c))
         if problem.offset_free[j]:
@@ -90,22 +94,45 @@ def _nuisance_bounds(errs, c):
 def _objective_at(problem, sim, coords, tol, offset_sd, errs):
     """Objective (chi2 plus priors) at a simulation; error amplitudes, offsets and shift fitted with their priors.
 
+    The shift by Gauss-Newton steps on its linear term, as ``Problem.nuisance``
+    does, the prior on the whole shift.
+
     Returns
     -------
     objective, chi2 : float
     a : ndarray
-        Error amplitudes, offsets (c,), shift.
+        Error amplitudes, offsets (c,), shift (s, the whole of it).
     H_inv : ndarray
     """
     c, e = sim.shape[1], len(errs)
-    X = _design(problem, sim, errs)
-    a, H_inv = _solve(problem, X, np.r_[np.full(e, ERROR_AMPLITUDE_SD**2), offset_sd**2, MAX_SHIFT_PRIOR**2],
-                      np.zeros(e + c + 1), problem.measured - sim, bounds=_nuisance_bounds(errs, c))
-    r = problem.measured - sim - _apply(X, a, problem, sim.shape)
-    z = np.where(problem.valid, r, 0.0)
+    prior_var = np.r_[np.full(e, ERROR_AMPLITUDE_SD**2), offset_sd**2, MAX_SHIFT_PRIOR**2]
+    bounds = _nuisance_bounds(errs, c)
+    shift = 0.0
+    for _ in range(CLOCK_STEPS):
+        X = _design(problem, sim, errs, shift)
+        step = _solve(problem, X, prior_var, np.r_[np.zeros(e + c), -shift], problem.measured -
+                      on_clock(sim, problem.dt, shift), bounds=bounds)[0][-1]
+        shift += step
+        if abs(step) < CLOCK_CONVERGED:
+            break
+    X = _design(problem, sim, errs, shift)
+    held = bounds.copy()
+    held[-1] = 0.0  # the shift found: the rest fitted on the simulation read at it
+    a, H_inv = _solve(problem, X, prior_var, np.r_[np.zeros(e + c), -shift], problem.measured -
+                      on_clock(sim, problem.dt, shift), bounds=held)
+    a[-1] = shift
+    z = np.where(problem.valid, _fit_residual(problem, sim, a, errs), 0.0)
     chi2 = float((problem.W * z * z).sum())
     prior = float(((coords / tol) ** 2).sum() + ((a[e:e + c] / offset_sd) ** 2).sum())
     return chi2 + prior, chi2, a, H_inv
+
+
+def _fit_residual(problem, sim, nuis, errs):
+    """Measured minus the simulation read on the fit's clock (``nuis[-1]``) minus the rest of the nuisance
+    (n, c; SI, NaN where unmeasured)."""
+    read = on_clock(sim, problem.dt, nuis[-1])
+    rest = np.r_[nuis[:-1], 0.0]
+    return problem.measured - read - _apply(_design(problem, sim, errs, nuis[-1]), rest, problem, sim.shape)
 
 
 def _prior_rows(nuis, coords, tol, offset_sd, errs):
@@ -126,8 +153,8 @@ def _projected_jacobian(problem, sim, coords, sens, active, tol, offset_sd, errs
     """The residual's Jacobian in the active coordinates, the linear nuisance projected out (Kaufman), with
     the priors' rows: what ``_trust_region``'s residual vector is differentiated into."""
     k, c, e = len(coords), sim.shape[1], len(errs)
-    X = _design(problem, sim, errs)
     _, _, nuis, _ = _objective_at(problem, sim, coords, tol, offset_sd, errs)
+    X = _design(problem, sim, errs, nuis[-1])
     # A model-error amplitude held at its bound does not follow the parameters: not projected out.
     bounds = _nuisance_bounds(errs, c)
     free = ~((nuis <= bounds[:, 0]) | (nuis >= bounds[:, 1]))
@@ -137,7 +164,7 @@ def _projected_jacobian(problem, sim, coords, sens, active, tol, offset_sd, errs
     sw = np.sqrt(problem.W)
     cols = []
     for i in active:
-        v = (np.where(problem.valid, sens[i], 0.0) * sw).ravel()
+        v = (np.where(problem.valid, on_clock(sens[i], problem.dt, nuis[-1]), 0.0) * sw).ravel()
         a = np.zeros(len(nuis))
         a[free] = H_inv @ (Xf.T @ v)
         unit = np.zeros(k)

@@ -2,16 +2,26 @@
 
 Objective
 ---------
-``chi2 = sum_t sum_c w_t ((m_tc - s_tc - b_c - delta ds_tc/dt) / sigma_c)^2``
+``chi2 = sum_t sum_c w_t ((m_tc - s_c(t + delta) - b_c) / sigma_c)^2``
 over the dynamic channels ``c``: measured ``m`` minus simulated ``s``, each
 channel scaled by its own noise level ``sigma_c`` (``_locate.noise_level``),
 free-decay samples weighted ``DECAY_WEIGHT`` (the swing after the reels
 stop is where the mechanisms act alone, without the reel table's own
-errors). Nuisance parameters, fitted by linear least squares for every
-simulation: a constant offset ``b_c`` per channel (calibration origin,
-marker placement) and one clock shift ``delta`` (the rope-length alignment
-is good to a fraction of a millisecond, but at 1 m/s that is already a
-noise level), bounded by ``MAX_SHIFT`` about the updated model's own shift.
+errors). Nuisance parameters, fitted for every simulation: a constant
+offset ``b_c`` per channel (calibration origin, marker placement) and one
+clock shift ``delta``, bounded by ``MAX_SHIFT`` about the updated model's
+own shift.
+
+The clock shift is exact: the simulation is read ``delta`` later
+(``on_clock``: a cubic spline through its samples), found by Gauss-Newton
+steps on the linear term ``delta ds/dt``. The rope-length alignment
+(``_align_recording``) reads the clock against the nominal model, whose
+stretch differs from the rig's: on realistic drawn rigs it was 12-18 ms
+off, and the linear term cannot follow that far where the recording
+holds fast motion (a spreader bar rattling at 40 Hz after the reels stop
+turns a quarter period in 6 ms). Read exactly, the hidden truth with its
+law left 3.1-8.6 times the noise per sample on four such recordings,
+against 5.2-25.9 on the linear term.
 
 Held-out scoring (2-fold cross-validation)
 ------------------------------------------
@@ -26,12 +36,32 @@ fold is not rewarded on the other.
 from __future__ import annotations
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
-__all__ = ["DECAY_WEIGHT", "MAX_SHIFT", "BLOCK_S", "Problem", "bounded_solve"]
+__all__ = ["DECAY_WEIGHT", "MAX_SHIFT", "BLOCK_S", "Problem", "bounded_solve", "on_clock"]
 
 DECAY_WEIGHT = 2.0
 MAX_SHIFT = 0.01  # s
 BLOCK_S = 0.5
+# Gauss-Newton steps on the clock shift, and the step (s) below which it has converged: a shift is read to a
+# tenth of a microsecond in two or three steps from where the linear term puts it.
+CLOCK_STEPS = 4
+CLOCK_CONVERGED = 1e-7
+
+
+def on_clock(values, dt, shift):
+    """``values`` (n, ...) sampled every ``dt`` (s) read ``shift`` (s) later, at ``t + shift``.
+
+    A cubic spline through the samples along axis 0; held at the first or
+    last sample past the ends (a rig at rest before its maneuver starts).
+    The inputs are not modified; a zero shift returns ``values`` itself.
+    """
+    values = np.asarray(values, float)
+    if shift == 0.0:
+        return values
+    n = values.shape[0]
+    where = np.clip(np.arange(n) + shift / dt, 0.0, n - 1.0)
+    return CubicSpline(np.arange(n, dtype=float), values, axis=0)(where)
 
 
 def bounded_solve(A, g, bounds):
@@ -141,9 +171,32 @@ class Problem:
         return Problem(self.time, self.measured, self.sigma, self.t_stop, regressors, prior_precision, prior_mean,
                        centre, bounds, self.offset_free)
 
-    def nuisance(self, sim, rate, fold):
+    def nuisance(self, sim, fold):
         """Least-squares offsets b (c,), clock shift delta (s) and regressor coefficients a (k,) on one fold;
-        a channel without a free offset keeps b = 0."""
+        a channel without a free offset keeps b = 0.
+
+        The shift is exact (``on_clock``): Gauss-Newton steps from the
+        centre, each the linear term's least squares on the simulation read
+        at the shift so far, the whole shift within ``MAX_SHIFT`` of the
+        centre; the offsets and coefficients are then those of the
+        simulation read at it.
+        """
+        sim = np.asarray(sim, float)
+        low, high = self.shift_center - MAX_SHIFT, self.shift_center + MAX_SHIFT
+        shift = self.shift_center
+        for _ in range(CLOCK_STEPS):
+            read = on_clock(sim, self.dt, shift)
+            step = self._linear_nuisance(read, np.gradient(read, self.dt, axis=0), fold, low - shift, high - shift)[1]
+            shift += step
+            if abs(step) < CLOCK_CONVERGED:
+                break
+        read = on_clock(sim, self.dt, shift)
+        b, _, a = self._linear_nuisance(read, np.zeros_like(read), fold, 0.0, 0.0)
+        return b, shift, a
+
+    def _linear_nuisance(self, sim, rate, fold, low, high):
+        """Offsets, the linear clock term's coefficient (within ``low``-``high``, s) and the regressors'
+        coefficients on one fold."""
         W = self.W * self.folds[fold][:, None]
         r = self.m0 - sim
         # Dividing by infinity where the offset is not free: the channel's "mean" is 0 and nothing is centred.
@@ -151,15 +204,14 @@ class Problem:
         rc = r - (W * r).sum(0) / sw
         dc = rate - (W * rate).sum(0) / sw
         if len(self.regressors):
-            return self._joint_nuisance(W, sw, r, rc, rate, dc, fold)
+            return self._joint_nuisance(W, sw, r, rc, rate, dc, fold, low, high)
         den = float((W * dc * dc).sum())
         delta = float((W * rc * dc).sum()) / den if den > 0 else 0.0
-        c = self.shift_center
-        delta = float(np.clip(delta, c - MAX_SHIFT, c + MAX_SHIFT))
+        delta = float(np.clip(delta, low, high))
         b = ((W * r).sum(0) - delta * (W * rate).sum(0)) / sw
         return b, delta, np.zeros(0)
 
-    def _joint_nuisance(self, W, sw, r, rc, rate, dc, fold):
+    def _joint_nuisance(self, W, sw, r, rc, rate, dc, fold, low, high):
         """Shift and regressors together (normal equations with the priors); offsets eliminated."""
         xc, gram = self._fold_regressors[fold]
         k = len(self.regressors)
@@ -171,27 +223,26 @@ class Problem:
         g[0] = float((W * rc * dc).sum())
         g[1:] = np.einsum("inc,nc->i", xc, W * rc) + self.prior_precision * self.prior_mean
         A[0, 0] = max(A[0, 0], 1e-300)
-        c = self.shift_center
-        bounds = np.vstack([[c - MAX_SHIFT, c + MAX_SHIFT], self.regressor_bounds])
+        bounds = np.vstack([[low, high], self.regressor_bounds])
         coef = bounded_solve(A, g, bounds)
         delta, a = float(coef[0]), coef[1:]
         fitted = delta * rate + np.einsum("i,inc->nc", a, self.regressors)
         b = (W * (r - fitted)).sum(0) / sw
         return b, delta, a
 
-    def _nuisance_part(self, rate, nuisance):
+    def _fitted(self, sim, nuisance):
+        """The simulation on its clock shift, its offsets and regressors added (SI)."""
         b, delta, a = nuisance
-        part = b[None, :] + delta * rate
+        part = on_clock(sim, self.dt, delta) + b[None, :]
         if len(a):
             part = part + np.einsum("i,inc->nc", a, self.regressors)
         return part
 
-    def residual(self, sim, nuisance=None, rate=None):
+    def residual(self, sim, nuisance=None):
         """Measured minus simulated minus nuisance (SI), NaN where unmeasured."""
         sim = np.asarray(sim, float)
-        rate = np.gradient(sim, self.dt, axis=0) if rate is None else rate
-        nuisance = self.nuisance(sim, rate, "all") if nuisance is None else nuisance
-        return self.measured - sim - self._nuisance_part(rate, nuisance)
+        nuisance = self.nuisance(sim, "all") if nuisance is None else nuisance
+        return self.measured - self._fitted(sim, nuisance)
 
     def evaluate(self, sim):
         """chi2 of one simulation (n, c): on all data and fold by fold.
@@ -204,11 +255,10 @@ class Problem:
             fold with the nuisance fitted on the first.
         """
         sim = np.asarray(sim, float)
-        rate = np.gradient(sim, self.dt, axis=0)
         out = {}
         for fit in ("all", "A", "B"):
-            nuisance = self.nuisance(sim, rate, fit)
-            r = self.m0 - sim - self._nuisance_part(rate, nuisance)
+            nuisance = self.nuisance(sim, fit)
+            r = self.m0 - self._fitted(sim, nuisance)
             sq = self.W * r * r
             if fit == "all":
                 out["full"] = float(sq.sum())
@@ -225,8 +275,7 @@ class Problem:
         out = np.zeros(self.measured.shape)
         for sim, fit, held in ((sim_a, "A", "B"), (sim_b, "B", "A")):
             sim = np.asarray(sim, float)
-            rate = np.gradient(sim, self.dt, axis=0)
-            r = self.m0 - sim - self._nuisance_part(rate, self.nuisance(sim, rate, fit))
+            r = self.m0 - self._fitted(sim, self.nuisance(sim, fit))
             mask = self.folds[held]
             out[mask] = np.where(self.valid, r, 0.0)[mask]
         return out

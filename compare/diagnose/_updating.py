@@ -74,8 +74,8 @@ from ._model_error import ERROR_AMPLITUDE_SD, ErrorDirections, model_error
 from ._objective import (
     BOUND_TOLERANCES,
     MAX_SHIFT_PRIOR,
-    _apply,
     _design,
+    _fit_residual,
     _objective_at,
     _offset_prior,
     _prior_rows,
@@ -183,12 +183,11 @@ def update_model(problem, ctx, nominal_sim, error_directions=(), workers=2, prog
     finally:
         pool.close()
     failed_names = [params[i].name for i in failed]
-    X = _design(problem, sim, [sens[i] for i in active] + errs)
+    X = _design(problem, sim, [sens[i] for i in active] + errs, nuis[-1])
     prior_var = np.r_[tol[active] ** 2, err_var, offset_sd**2, MAX_SHIFT_PRIOR**2]
     _, H_inv = _solve(problem, X, prior_var, np.zeros(len(active) + len(errs) + c + 1), problem.measured - sim)
     # The residual the fit leaves, its nuisance fitted: the sandwich's middle.
-    z = np.where(problem.valid, problem.measured - sim - _apply(_design(problem, sim, errs), nuis, problem, sim.shape),
-                 0.0) * np.sqrt(problem.W)
+    z = np.where(problem.valid, _fit_residual(problem, sim, nuis, errs), 0.0) * np.sqrt(problem.W)
     robust = robust_covariance(X, z, H_inv, 1.0 / prior_var)
     spread = between_trials(X, z, np.r_[coords[active], nuis], 1.0 / prior_var, ctx["channels"], len(active),
                             robust_covariance, bound=BOUND_TOLERANCES * tol[active])
@@ -549,9 +548,8 @@ def _trust_region(problem, pool, fit, active, tol, offset_sd, errs, max_jacobian
         obj, chi2, nuis, _ = _objective_at(problem, sim, coords, tol, offset_sd, errs)
         if obj < best["objective"]:
             best.update(objective=obj, chi2=chi2, coords=coords, sim=sim, state=state, nuisance=nuis, schedules=taken)
-        X = _design(problem, sim, errs)
-        z = (np.where(problem.valid, problem.measured - sim, 0.0) * np.sqrt(problem.W)).ravel()
-        r = np.r_[z - X @ nuis, _prior_rows(nuis, coords, tol, offset_sd, errs)]
+        z = (np.where(problem.valid, _fit_residual(problem, sim, nuis, errs), 0.0) * np.sqrt(problem.W)).ravel()
+        r = np.r_[z, _prior_rows(nuis, coords, tol, offset_sd, errs)]
         n_rows[:] = [len(r)]
         residuals[coords.tobytes()] = r
         return r
