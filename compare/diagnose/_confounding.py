@@ -76,7 +76,7 @@ def marginal_uncertainty(problem, ctx, update, signature, sim, residual, error_d
     nuisance_precision = np.r_[np.full(len(errs), ERROR_AMPLITUDE_SD**-2.0), offset_sd**-2.0, MAX_SHIFT_PRIOR**-2.0]
 
     # On the clock the updated model settled on: the fits' shifts lie within MAX_SHIFT of it.
-    clock = float(update["shift"])
+    clock = float(update.get("shift", 0.0))
 
     def design(columns, precision):
         X = _design(problem, sim, [*columns, signature, *errs], clock)
