@@ -1,6 +1,6 @@
 """The recording's clock, read from its rope lengths against a model's: a rig drawn within its tolerances puts
-the nominal model's reading off by more than the linear clock shift follows; the rig it was recorded from
-does not."""
+the nominal model's reading off by more than a linear clock shift follows; the rig it was recorded from
+does not. The fits read the shift exactly, where a linear term cannot follow."""
 
 import numpy as np
 import pandas as pd
