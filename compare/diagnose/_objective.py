@@ -118,10 +118,10 @@ def _objective_at(problem, sim, coords, tol, offset_sd, errs):
     X = _design(problem, sim, errs, shift)
     held = bounds.copy()
     held[-1] = 0.0  # the shift found: the rest fitted on the simulation read at it
-    a, H_inv = _solve(problem, X, prior_var, np.r_[np.zeros(e + c), -shift], problem.measured -
-                      on_clock(sim, problem.dt, shift), bounds=held)
+    r = problem.measured - on_clock(sim, problem.dt, shift)
+    a, H_inv = _solve(problem, X, prior_var, np.r_[np.zeros(e + c), -shift], r, bounds=held)
+    z = np.where(problem.valid, r - _apply(X, a, problem, sim.shape), 0.0)  # a's shift is 0 here
     a[-1] = shift
-    z = np.where(problem.valid, _fit_residual(problem, sim, a, errs), 0.0)
     chi2 = float((problem.W * z * z).sum())
     prior = float(((coords / tol) ** 2).sum() + ((a[e:e + c] / offset_sd) ** 2).sum())
     return chi2 + prior, chi2, a, H_inv
