@@ -321,6 +321,21 @@ def _element_rest(e, y, m, Lseg, dLseg, o_ring):
     return length / n, rate / n
 
 
+@njit(cache=True, inline="always")
+def side_rest_lengths(y, m, Lseg, dLseg, o_ring, rest, rest_rate, inv_rest):
+    """Each segment side's element rest length (m), its rate (m/s) and its inverse, (S, spans + 1) each:
+    ``_element_rest``'s divisions once per side, not once per element (the same arithmetic, the same bits)."""
+    for s in range(m.seg_nel.shape[0]):
+        n = m.seg_nel[s]
+        rest[s, 0], rest_rate[s, 0] = Lseg[s] / n, dLseg[s] / n
+        spans = m.seg_nring[s] + 1 if m.seg_ring[s] >= 0 else 0
+        for side in range(1, spans + 1):
+            length, rate, n_span = _span_rest(s, side, y, m, Lseg, dLseg, o_ring)
+            rest[s, side], rest_rate[s, side] = length / n_span, rate / n_span
+        for side in range(spans + 1):
+            inv_rest[s, side] = 1.0 / rest[s, side]
+
+
 @njit(cache=True, **NO_REFCOUNT)
 def rhs(t, y, dy, m, work):
     """dy = f(t, y). ``work`` holds scratch arrays (see ``make_work``)."""
@@ -360,7 +375,6 @@ def _rhs(t, y, dy, m, work, update):
     seg_reel_off = m.seg_reel_off
     seg_ring = m.seg_ring
     seg_nring = m.seg_nring
-    seg_nel = m.seg_nel
     ring_nelA = m.ring_nelA
     ring_nelB = m.ring_nelB
     seg_npart = m.seg_npart
@@ -405,17 +419,8 @@ def _rhs(t, y, dy, m, work, update):
 
     el_side = m.el_side
     eps, seg_decay, seg_gain = work.eps, work.seg_decay, work.seg_gain
-    # ``_element_rest``'s divisions once per segment side, not once per element (the same arithmetic)
     rest, rest_rate, inv_rest = work.rest, work.rest_rate, work.inv_rest
-    for s in range(seg_nel.shape[0]):
-        n = seg_nel[s]
-        rest[s, 0], rest_rate[s, 0] = Lseg[s] / n, dLseg[s] / n
-        spans = seg_nring[s] + 1 if seg_ring[s] >= 0 else 0
-        for side in range(1, spans + 1):
-            length, rate, n_span = _span_rest(s, side, y, m, Lseg, dLseg, o_ring)
-            rest[s, side], rest_rate[s, side] = length / n_span, rate / n_span
-        for side in range(spans + 1):
-            inv_rest[s, side] = 1.0 / rest[s, side]
+    side_rest_lengths(y, m, Lseg, dLseg, o_ring, rest, rest_rate, inv_rest)
     slack_changes = 0.0
     for e in range(E):
         s = el_seg[e]

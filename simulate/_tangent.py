@@ -638,6 +638,15 @@ def _record_tangent(out, y, dY, work, tw, nb):
                              / (T[b, 1, 0] ** 2 + T[b, 1, 1] ** 2))
 
 
+@njit(cache=True, **NO_REFCOUNT)
+def tangent_steps(t, h, n, y, acc, y_eval, dY, dacc, dY_eval, m, dm, work, tw):
+    """``n`` steps of length h from (t, y) with their tangents, in place: ``_verlet.verlet_steps``'s loop."""
+    for j in range(n):
+        _step_tangent(t + j * h, h, y, acc, y_eval, dY, dacc, dY_eval, m, dm, work, tw)
+        _rebase_tangent(y, dY, work, tw, m.nb)
+        rebase(y, work, m.nb)
+
+
 @njit(cache=True)
 def integrate_tangent(y0, dY0, t0, out_dt, substeps, m, dm, work, tw):
     """Verlet from (t0, y0) on the step schedule ``substeps`` (steps per record interval), with tangents.
@@ -676,10 +685,7 @@ def integrate_tangent(y0, dY0, t0, out_dt, substeps, m, dm, work, tw):
         sub = substeps[rec]
         h = out_dt / sub
         t_rec = t0 + rec * out_dt
-        for j in range(sub):
-            _step_tangent(t_rec + j * h, h, y, acc, y_eval, dY, dacc, dY_eval, m, dm, work, tw)
-            _rebase_tangent(y, dY, work, tw, nb)
-            rebase(y, work, nb)
+        tangent_steps(t_rec, h, sub, y, acc, y_eval, dY, dacc, dY_eval, m, dm, work, tw)
         record_state(records[rec + 1], y, work, nb)
         _record_tangent(tangents[rec + 1], y, dY, work, tw, nb)
     return records, tangents

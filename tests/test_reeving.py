@@ -102,6 +102,36 @@ def test_a_reeved_block_swinging_through_its_four_rings_keeps_its_energy_and_con
     assert drift[1] < drift[0] / 2, drift
 
 
+@pytest.mark.parametrize("machine", ["hook block", "dragline"])
+def test_the_steps_stiffness_bound_reads_each_element_at_the_rest_length_the_rope_model_gives_it(machine):
+    # The tracked step's bound (taken at every record) reads the element rest lengths from a table per
+    # segment side; the same bound from each element's rest length as the trajectory reader computes it
+    # (element_rest_lengths, written apart), mid-swing, the rope slid through every ring: the block's spans
+    # differ (the drum's straight 0.5 m, falls of about 1 m), so an element read on a wrong side changes it.
+    from dragline.simulate import _kernel
+    from dragline.simulate._simulate import element_rest_lengths
+    from dragline.simulate._tracked import gershgorin_lambda, state_gershgorin_lambda
+
+    if machine == "hook block":
+        rig = rig_from_dict(_hook_block())
+        y0 = solve_statics(assemble(rig, STILL)).state.copy()
+        y0[3] = 0.3  # m/s sideways, as the energy test swings it
+        res = simulate(rig, STILL, duration=0.5, rate_hz=100, initial_state=y0)
+    else:
+        rig = load_rig()
+        res = simulate(rig, None, duration=1.0, rate_hz=100)
+    model, time, y = res.model, res.time[-1:], res.states[-1]
+    rest = np.empty(model.arrays["el_seg"].shape[0])
+    for segment in model.seg_names:
+        rest[model.seg_elements[segment]] = element_rest_lengths(model, time, res.states[-1:], segment)[0]
+    m = model.kernel_tuple()
+    expected = gershgorin_lambda(rest, model.segment_lengths(time)[:, 0].copy(), m)
+    assert state_gershgorin_lambda(float(time[0]), y, m, _kernel.make_work(m)) == pytest.approx(expected, rel=1e-12)
+    if machine == "hook block":
+        spans = [rest[model.arrays["el_side"] == side] for side in range(1, 6)]
+        assert np.ptp([s[0] for s in spans]) > 0.05  # m: the spans' elements differ
+
+
 def test_one_ring_written_either_way_builds_the_same_model():
     one = _hook_block(rings=["fixed.head_a"], end="block.sheave_1")
     old = _hook_block(end="block.sheave_1")
