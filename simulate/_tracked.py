@@ -170,9 +170,9 @@ def state_gershgorin_lambda(t, y, m, work):
     P = m.part_seg.shape[0]
     E = el_seg.shape[0]
     o_ring = 12 * nb + 6 * P + E
-    # Per segment side, then per element: ``_element_rest`` called element by element (numba's code for
-    # a loop that hands the model's tuple to it) made this bound, taken every record, 2.3 times as
-    # costly, and a baseline dig 17 % slower.
+    # Per segment side, then per element: ``_element_rest`` called element by element, handed the model's
+    # tuple in a function compiled with reference counting (it allocates; the likely cause), made this
+    # bound, taken every record, 2.3 times as costly and a baseline dig 17 % slower (docs/model.md).
     by_side, rate, inverse = np.empty_like(work.rest), np.empty_like(work.rest), np.empty_like(work.rest)
     side_rest_lengths(y, m, Lseg, dLseg, o_ring, by_side, rate, inverse)
     rest = np.empty(E)
